@@ -28,7 +28,8 @@ def as_array(name: str, value, *, shape: Sequence[int | None], kinds: str = _NUM
             raise DtypeError(f"{name}: expected a numpy array, got {type(value).__name__}")
     if value.dtype.kind not in kinds:
         raise DtypeError(f"{name}: expected dtype kind in {sorted(kinds)}, got {value.dtype}")
-    expected = "(" + ", ".join("*" if s is None else str(s) for s in shape) + ")"
+    dims = ["*" if s is None else str(s) for s in shape]
+    expected = "(" + ", ".join(dims) + ("," if len(dims) == 1 else "") + ")"
     if value.ndim != len(shape) or any(s is not None and s != v for s, v in zip(shape, value.shape)):
         raise ShapeError(f"{name}: expected shape {expected}, got {tuple(value.shape)}")
     return value

@@ -1,0 +1,133 @@
+"""Saving and loading maps: exact round trip, continued fusion, refusing bad files."""
+
+import io
+import json
+import zipfile
+
+import numpy as np
+import pytest
+import trimesh
+
+from conceptfusion.cameras import intrinsics_from_fovy
+from conceptfusion.errors import MapFormatError, MapVersionError
+from conceptfusion.features import PixelFeatures
+from conceptfusion.fusion import PointFusionMap
+from conceptfusion.persistence import FORMAT_VERSION, export_ply, load_map, save_map
+from conceptfusion.synthetic import orbit_poses, render_boxes, tabletop_boxes
+
+H, W = 36, 48
+K = intrinsics_from_fovy(60.0, W, H)
+BOXES = tabletop_boxes()
+POSES = orbit_poses((0.0, 0.0, 0.45), 1.3, 0.8, 6, sweep_deg=90.0)
+
+
+def _integrate(fmap, pose):
+    f = render_boxes(BOXES, K, pose, H, W)
+    # features: one random unit vector per instance, deterministic per pose
+    rng = np.random.default_rng(int(abs(pose[0, 3]) * 1000))
+    pal = rng.normal(size=(len(BOXES), fmap.feature_dim)).astype(np.float32)
+    pal /= np.linalg.norm(pal, axis=1, keepdims=True)
+    fmap.integrate(f.rgb_hw3, f.depth_hw, K, pose, PixelFeatures(pal, f.instance_hw))
+
+
+def _assert_same(a, b):
+    assert len(a) == len(b)
+    assert np.array_equal(a.points, b.points)
+    assert np.array_equal(a.normals, b.normals)
+    assert np.array_equal(a.colors, b.colors)
+    assert np.array_equal(a.confidence, b.confidence)
+    assert np.array_equal(a.features(), b.features())
+    q = np.ones(a.feature_dim)
+    assert np.array_equal(a.scores(q), b.scores(q), equal_nan=True)
+
+
+def test_round_trip_is_exact_and_fusion_continues(tmp_path):
+    full = PointFusionMap(8, slots=3)
+    half = PointFusionMap(8, slots=3)
+    for pose in POSES[:3]:
+        _integrate(full, pose)
+        _integrate(half, pose)
+    path = save_map(half, tmp_path / "m.npz")
+    loaded = load_map(path)
+    _assert_same(half, loaded)
+    assert loaded.config == half.config and loaded.frames_integrated == 3
+    for pose in POSES[3:]:
+        _integrate(full, pose)
+        _integrate(loaded, pose)
+    _assert_same(full, loaded)
+
+
+def test_no_temporary_files_left_behind(tmp_path):
+    fmap = PointFusionMap(8)
+    _integrate(fmap, POSES[0])
+    save_map(fmap, tmp_path / "m.npz")
+    save_map(fmap, tmp_path / "m.npz")  # overwrite
+    assert sorted(p.name for p in tmp_path.iterdir()) == ["m.npz"]
+
+
+def test_truncated_file(tmp_path):
+    fmap = PointFusionMap(8)
+    _integrate(fmap, POSES[0])
+    data = save_map(fmap, tmp_path / "m.npz").read_bytes()
+    (tmp_path / "cut.npz").write_bytes(data[: len(data) // 2])
+    with pytest.raises(MapFormatError, match="truncated or corrupt"):
+        load_map(tmp_path / "cut.npz")
+
+
+def test_foreign_files(tmp_path):
+    (tmp_path / "text.npz").write_text("hello")
+    with pytest.raises(MapFormatError, match="not a readable map file"):
+        load_map(tmp_path / "text.npz")
+    np.savez(tmp_path / "other.npz", a=np.zeros(3))
+    with pytest.raises(MapFormatError, match="with a header"):
+        load_map(tmp_path / "other.npz")
+    header = json.dumps({"format": "something-else", "version": 1}).encode()
+    np.savez(tmp_path / "alien.npz", header=np.frombuffer(header, np.uint8))
+    with pytest.raises(MapFormatError, match="expected format 'conceptfusion-map'"):
+        load_map(tmp_path / "alien.npz")
+    with pytest.raises(FileNotFoundError):
+        load_map(tmp_path / "missing.npz")
+
+
+def _rewrite(path, out, edit_header=None, drop=None):
+    with np.load(path) as z:
+        arrays = {k: z[k] for k in z.files}
+    header = json.loads(bytes(arrays.pop("header")).decode())
+    if edit_header:
+        edit_header(header)
+    if drop:
+        arrays.pop(drop)
+    np.savez(out, header=np.frombuffer(json.dumps(header).encode(), np.uint8), **arrays)
+
+
+def test_newer_version_and_damaged_arrays(tmp_path):
+    fmap = PointFusionMap(8)
+    _integrate(fmap, POSES[0])
+    path = save_map(fmap, tmp_path / "m.npz")
+    _rewrite(path, tmp_path / "new.npz", edit_header=lambda h: h.update(version=FORMAT_VERSION + 1))
+    with pytest.raises(MapVersionError, match=f"version {FORMAT_VERSION + 1}.*up to {FORMAT_VERSION}"):
+        load_map(tmp_path / "new.npz")
+    _rewrite(path, tmp_path / "drop.npz", drop="feat_bank")
+    with pytest.raises(MapFormatError, match="expected array 'feat_bank'"):
+        load_map(tmp_path / "drop.npz")
+    _rewrite(path, tmp_path / "count.npz", edit_header=lambda h: h.update(num_points=h["num_points"] + 1))
+    with pytest.raises(MapFormatError, match="'geometry'"):
+        load_map(tmp_path / "count.npz")
+
+
+def test_ply_export_rgb_and_heatmap(tmp_path):
+    fmap = PointFusionMap(8)
+    _integrate(fmap, POSES[0])
+    export_ply(fmap, tmp_path / "rgb.ply")
+    cloud = trimesh.load(tmp_path / "rgb.ply")
+    assert len(cloud.vertices) == len(fmap)
+    assert np.allclose(cloud.vertices, fmap.points, atol=1e-6)
+    assert np.array_equal(np.asarray(cloud.colors)[:, :3], fmap.colors)
+    values = np.linspace(0, 1, len(fmap))
+    values[0] = np.nan
+    export_ply(fmap, tmp_path / "heat.ply", values_n=values)
+    heat = np.asarray(trimesh.load(tmp_path / "heat.ply").colors)[:, :3]
+    assert heat[0].tolist() == [128, 128, 128]
+    assert heat[-1, 0] > heat[-1, 2] and heat[1, 2] > heat[1, 0]  # high red, low blue
+    with pytest.raises(ValueError, match="values_n"):
+        export_ply(fmap, tmp_path / "bad.ply", values_n=np.zeros(3))
