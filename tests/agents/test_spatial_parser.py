@@ -1,0 +1,227 @@
+"""Offline spatial-question parser: paper examples, noun phrases, rejections, accuracy on the
+hand-written question set, and the shared result/signature checks."""
+
+import json
+from pathlib import Path
+
+import pytest
+
+from agents.spatial_parser import (
+    PARSERS,
+    SELF_REFERENCE,
+    ParseResult,
+    PatternParser,
+    SpatialQuestionParser,
+    cannot_parse,
+    clean_noun_phrase,
+    make_parser,
+    normalise_question,
+    parse_question,
+    parse_signature,
+    parsed,
+)
+from conceptfusion.spatial import COMPARATOR_NAMES
+
+DATA = Path(__file__).parent / "data" / "spatial_questions.jsonl"
+
+
+def _load():
+    with DATA.open(encoding="utf-8") as f:
+        return [json.loads(line) for line in f if line.strip()]
+
+
+# -- the paper's own examples -------------------------------------------------------------------
+
+
+@pytest.mark.parametrize(
+    "question, expected",
+    [
+        ("How close is the chair from the sofa?", "howFar(chair, sofa)"),
+        ("how far is the refrigerator from the television", "howFar(refrigerator, television)"),
+        ("what is the distance between the refrigerator and the television?", "howFar(refrigerator, television)"),
+        ("Is the bread inside the bowl?", "isContained(bread, bowl)"),
+        ("Is the apple on the table?", "onTopOf(apple, table)"),
+        ("How far is the sanitizer from the door?", "howFar(sanitizer, door)"),
+        ("I want to know the distance between the door and the window.", "howFar(door, window)"),
+        ("Where is the closest restroom from my location?", "howFar(restroom, my location)"),
+        ("Is the soda inside the bag?", "isContained(soda, bag)"),
+    ],
+)
+def test_paper_examples(question, expected):
+    assert parse_question(question).signature == expected
+
+
+def test_paper_soda_example_keeps_the_whole_noun_phrase():
+    # the paper's LLM answered canFitInside(soda, bag); we keep "can of soda" as the object
+    res = parse_question("I want to grab a can of soda and put this into a bag.")
+    assert res.signature == "canFitInside(can of soda, bag)"
+
+
+# -- phrasing -----------------------------------------------------------------------------------
+
+
+@pytest.mark.parametrize(
+    "question, expected",
+    [
+        ("How many metres separate the lamp and the desk?", "howFar(lamp, desk)"),
+        ("Is the book sitting on the shelf?", "onTopOf(book, shelf)"),
+        ("Is the box resting on top of the crate?", "onTopOf(box, crate)"),
+        ("Is the cat beneath the table?", "under(cat, table)"),
+        ("Would the mug fit in the drawer?", "canFitInside(mug, drawer)"),
+        ("Is the couch larger than the bed?", "isBigger(couch, bed)"),
+        ("Is the cup smaller than the jug?", "isBigger(jug, cup)"),
+        ("Is the vase to the left of the clock?", "isToTheLeft(vase, clock)"),
+        ("Is the vase to the right of the clock?", "isToTheRight(vase, clock)"),
+        ("Is the ring inside the box?", "isContained(ring, box)"),
+        ("Is the ring in the box?", "isContained(ring, box)"),
+        ("Is the ring within the box?", "isContained(ring, box)"),
+        ("Does the box contain the ring?", "isContained(ring, box)"),
+        ("Is the shelf big enough for the speaker?", "canFitInside(speaker, shelf)"),
+        ("Tell me whether the lamp is on the desk.", "onTopOf(lamp, desk)"),
+        ("CAN YOU TELL ME HOW FAR THE DOOR IS FROM THE WINDOW", "howFar(door, window)"),
+        ("is the mug to the left of the plate from my point of view?", "isToTheLeft(mug, plate)"),
+        ("Is the umbrella stand to the left of the door?", "isToTheLeft(umbrella stand, door)"),
+        ("Does the bookshelf stand next to the door?", "howFar(bookshelf, door)"),
+        ("How far is the sofa from here?", f"howFar(sofa, {SELF_REFERENCE})"),
+        ("Is the oil painting above the fireplace?", "onTopOf(oil painting, fireplace)"),
+    ],
+)
+def test_phrasings(question, expected):
+    assert parse_question(question).signature == expected
+
+
+def test_noun_phrases_drop_articles_and_keep_adjectives():
+    res = parse_question("Is the big red mug on the old wooden table?!")
+    assert res.arguments == ("big red mug", "old wooden table")
+    assert clean_noun_phrase("  The red mug. ") == "red mug"
+    assert clean_noun_phrase("those blue chairs") == "blue chairs"
+    assert clean_noun_phrase("me") == SELF_REFERENCE
+    assert clean_noun_phrase("my current location") == SELF_REFERENCE
+    with pytest.raises(TypeError, match="text: expected a str"):
+        clean_noun_phrase(None)
+
+
+def test_normalisation_expands_contractions_and_strips_lead_ins():
+    assert normalise_question("Hey, what's the distance between A and B??") == "what is the distance between a and b"
+    assert normalise_question("Could you please tell me if the cup isn't on the tray?") == "the cup is not on the tray"
+
+
+# -- rejections ---------------------------------------------------------------------------------
+
+
+@pytest.mark.parametrize(
+    "question, reason",
+    [
+        ("", "empty question"),
+        ("   \n", "empty question"),
+        ("What time is it?", "no supported spatial relation"),
+        ("Where is the chair?", "no supported spatial relation"),
+        ("Is the lamp on?", "no supported spatial relation"),
+        ("How far is it from the sofa?", "'it' is a pronoun"),
+        ("How far is the chair from the sofa and the table?", "names more than one object"),
+        ("Is the mug on the table next to the laptop?", "more than one object"),
+        ("Turn on the lights.", "no verb before 'turn'"),
+        ("Is the chair in front of the TV?", "unsupported relation"),
+        ("Is the cup bigger than the cup?", "need two different objects"),
+    ],
+)
+def test_rejections_carry_a_reason(question, reason):
+    res = parse_question(question)
+    assert not res.ok and res.signature is None and res.function is None and res.arguments is None
+    assert reason in res.reason
+
+
+def test_non_string_question_is_a_type_error():
+    with pytest.raises(TypeError, match="question: expected a str, got int"):
+        parse_question(42)
+
+
+# -- held-out question set ------------------------------------------------------------------------
+
+
+def test_question_set_is_broad_and_well_formed():
+    rows = _load()
+    assert len(rows) >= 150
+    expected = [r["expected"] for r in rows if r["expected"] is not None]
+    functions = {parse_signature(e).function for e in expected}
+    assert functions == set(COMPARATOR_NAMES)
+    for e in expected:  # every expected answer is itself a valid signature, spelled canonically
+        assert parse_signature(e).signature == e
+    assert sum(r["expected"] is None for r in rows) >= 10
+    assert len({r["question"] for r in rows}) == len(rows)
+
+
+def test_offline_parser_accuracy_on_the_question_set():
+    rows = _load()
+    parser = PatternParser()
+    wrong = []
+    for row in rows:
+        got = parser.parse(row["question"]).signature
+        if got != row["expected"]:
+            wrong.append(f"{row['question']!r}: got {got}, expected {row['expected']}")
+    accuracy = 1.0 - len(wrong) / len(rows)
+    assert accuracy >= 0.98, f"exact-signature accuracy {accuracy:.3f} < 0.98; misparsed:\n" + "\n".join(wrong)
+
+
+# -- results and signatures -----------------------------------------------------------------------
+
+
+def test_parse_result_invariants():
+    ok = parsed("howFar", "chair", "sofa")
+    assert ok.ok and ok.signature == "howFar(chair, sofa)" and ok.reason == ""
+    bad = cannot_parse("no objects")
+    assert not bad.ok and bad.signature is None
+    with pytest.raises(ValueError, match="needs a reason"):
+        ParseResult(function=None, arguments=None)
+    with pytest.raises(ValueError, match="unknown function 'isNear'"):
+        ParseResult(function="isNear", arguments=("a", "b"))
+    with pytest.raises(ValueError, match="both be set or both be None"):
+        ParseResult(function="howFar", arguments=None)
+    with pytest.raises(ValueError, match="two non-empty argument strings"):
+        ParseResult(function="howFar", arguments=("a", ""))
+
+
+@pytest.mark.parametrize(
+    "text, signature",
+    [
+        ("howFar(chair, sofa)", "howFar(chair, sofa)"),
+        ("Response: onTopOf(apple, table)\n", "onTopOf(apple, table)"),
+        ("  isContained( the bread , 'bowl' ).", "isContained(bread, bowl)"),
+        ("howfar(refrigerator, television)", "howFar(refrigerator, television)"),
+        ("howFar(restroom, my location)", "howFar(restroom, my location)"),
+        ("```\ncanFitInside(Soda, Bag)\n```", "canFitInside(soda, bag)"),
+    ],
+)
+def test_parse_signature_accepts(text, signature):
+    assert parse_signature(text).signature == signature
+
+
+@pytest.mark.parametrize(
+    "text, reason",
+    [
+        ("I am not sure.", "no function call found"),
+        ("isNear(cup, plate)", "unknown function 'isNear'"),
+        ("howFar(chair)", "exactly two arguments, got 1"),
+        ("howFar(chair, sofa, table)", "exactly two arguments, got 3"),
+        ("howFar(, sofa)", "first argument names no object"),
+        ("onTopOf(it, table)", "pronoun"),
+    ],
+)
+def test_parse_signature_rejects(text, reason):
+    res = parse_signature(text)
+    assert not res.ok and reason in res.reason
+
+
+# -- lookup table -------------------------------------------------------------------------------
+
+
+def test_parser_table():
+    assert set(PARSERS) == {"pattern", "llm"}
+    parser: SpatialQuestionParser = make_parser()
+    assert parser.parse("Is the fork in the drawer?").signature == "isContained(fork, drawer)"
+    llm = make_parser("llm", base_url="http://127.0.0.1:1/v1", timeout_s=1.0)
+    assert llm.config.url == "http://127.0.0.1:1/v1/chat/completions"
+    with pytest.raises(ValueError, match=r"unknown spatial parser 'patern'; did you mean pattern\?"):
+        make_parser("patern")
+    with pytest.raises(TypeError, match="takes no options"):
+        make_parser("pattern", base_url="x")
