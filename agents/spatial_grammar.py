@@ -56,7 +56,7 @@ _LEAD_INS = re.compile(
     r"|(?:roughly|approximately|about|exactly|just|honestly) "
     r"|(?:(?:can|could|would|will) you (?:please )?)?"
     r"(?:tell me|check|find out|figure out|estimate|measure|determine|let me know|verify|confirm|"
-    r"compute|calculate|work out|say|guess|show me)(?: for me)?\b ?,? ?"
+    r"compute|calculate|work out|say|guess|show me|find|give me|get)(?: for me)?\b ?,? ?"
     r"|(?:do|does) (?:you|anyone|anybody) (?:know|think)\b ?"
     r"|(?:i|we) (?:would like|want|need|wish|wanted|am trying|are trying) to (?:know|find out|check|see)\b ?"
     r"|(?:i|we) (?:am |are )?wonder(?:ing)?\b ?"
@@ -65,7 +65,10 @@ _LEAD_INS = re.compile(
     r"|(?:whether|if)\b ?"
     r")"
 )
-_TRAILERS = re.compile(r"(?:(?: ,)? (?:please|for me|or not|thanks|thank you)| , (?:right|correct|yes or no|true or false))$")
+_TRAILERS = re.compile(
+    r"(?:(?: ,)? (?:please|for me|or not|thanks|thank you|roughly|approximately|more or less|precisely)"
+    r"| , (?:right|correct|yes or no|true or false|exactly|about))$"
+)
 
 
 def normalise_question(question: str) -> str:
@@ -102,7 +105,8 @@ _POSTURE = {
     "draped", "tucked", "hidden", "stuck", "hung", "sat", "parked", "mounted", "contained",
     "packed", "left", "lying", "found", "piled", "laid", "lain", "enclosed", "sits", "stands",
     "lies", "rests", "hangs", "leans", "goes", "belongs", "appears", "seems", "stays", "lives",
-    "sleeps", "fell", "fallen",
+    "sleeps", "fell", "fallen", "asleep", "awake", "curled", "sprawled", "seated", "balanced",
+    "leaning", "up",
 }
 # Base forms double as nouns ("umbrella stand", "TV stand"): dropped only after do-support or a
 # modal ("does the bookshelf stand ...", "would the box go ...").
@@ -224,10 +228,11 @@ _PATTERNS: tuple[_Pattern, ...] = (
     _p("isBigger", _B + r" or " + _A + r"(?: ,)? which (?:one )?is " + _SMALL),
     # --- distance -------------------------------------------------------------------------
     _p("howFar", r"(?:how (?:far|long|many " + _UNITS + r")|what is the distance)(?: away)?(?: is it| it is| would it be|"
-       r" is the (?:walk|trip|way|path|route|distance|drive)| do (?:i|we) (?:have|need) to (?:go|walk)| is)?"
+       r" is the (?:walk|trip|way|path|route|distance|drive)| is)?"
+       r"(?: (?:do|would|will|did|must|should) (?:i|we|you|one|the robot) (?:have to |need to )?(?:go|walk|travel|drive|move))?"
        r" from " + _A + r" to " + _B),
     _p("howFar", r"how (?:far|close|near)(?: away)? from " + _B + r" (?:is|are) " + _A),
-    _p("howFar", r"how (?:far|close|near)(?: away)? apart (?:is |are )?" + _A + r" and " + _B),
+    _p("howFar", r"how (?:far|close|near)(?: away)?(?: apart)? (?:is |are )?" + _A + r" and " + _B),
     _p("howFar", r"how (?:far|close|near|distant)(?: away)? " + _A + r" (?:from|to) " + _B),
     _p("howFar", r"(?:what is |give me |get )?(?:the |a )?(?:approximate |rough |exact |current |straight line |"
        r"straight-line |euclidean )?(?:distance|gap|separation|spacing) (?:between|separating|that separates) "

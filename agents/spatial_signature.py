@@ -107,7 +107,7 @@ _SPLITTERS = {
     "and", "or", "on", "in", "inside", "under", "underneath", "beneath", "below", "above",
     "over", "near", "next", "beside", "besides", "behind", "between", "from", "to", "with",
     "into", "onto", "within", "atop", "upon", "than", "by", "at", "across", "around", "against",
-    "toward", "towards",
+    "toward", "towards", "fit", "fits",
 }
 _RELATIONAL_HEAD = re.compile(r"^(?:front|back|middle|center|centre|corner|side|edge|top|bottom|rear) of\b")
 
