@@ -25,17 +25,9 @@ from functools import lru_cache
 
 import numpy as np
 
+from conceptfusion import _kernels
 from conceptfusion._checks import as_array, as_float_array
-from conceptfusion.cameras import (
-    backproject,
-    check_intrinsics,
-    check_pose,
-    normal_map,
-    project_points,
-    radial_confidence,
-    transform_directions,
-    transform_points,
-)
+from conceptfusion.cameras import check_intrinsics, check_pose, radial_confidence
 from conceptfusion.errors import DtypeError, ShapeError
 from conceptfusion.feature_store import FeatureStore
 from conceptfusion.features import PixelFeatures
@@ -79,6 +71,8 @@ class IntegrationStats:
 
     merged: int
     """Pixels fused into existing points."""
+    covered: int
+    """Pixels next to a compatible map point, neither fused nor added (map density kept)."""
     added: int
     """Pixels that became new points."""
     skipped: int
@@ -138,16 +132,15 @@ class PointFusionMap:
         cap = len(self._geo)
         if need <= cap:
             return
-        new_cap = max(need, int(cap * 1.5) + 1024)
-        geo = np.zeros((new_cap, _GEO_COLS), np.float32)
+        new_cap = max(need, 2 * cap + 4096)
+        geo = np.empty((new_cap, _GEO_COLS), np.float32)  # rows past _n are set on append
         geo[: self._n] = self._geo[: self._n]
         self._geo = geo
-        self._store.resize(new_cap)
+        self._store.resize(new_cap, self._n)
 
     def nbytes(self) -> int:
         """Bytes the map holds for its live points and shared feature tables (no spare capacity)."""
-        per_point = self._geo.itemsize * _GEO_COLS
-        return self._n * per_point + self._store.nbytes(self._n)
+        return self._n * self._geo.itemsize * _GEO_COLS + self._store.nbytes(self._n)
 
     # ------------------------------------------------------------------ accessors
     @property
@@ -178,7 +171,7 @@ class PointFusionMap:
     @property
     def has_feature(self) -> np.ndarray:
         """Whether each point has a concept vector, (N,) bool."""
-        return self._store.point_hist[: self._n] != 0
+        return self._store.has_feature(self._n)
 
     def features(self, indices=None) -> np.ndarray:
         """Unit-length concept vectors (zeros for points without one).
@@ -232,24 +225,25 @@ class PointFusionMap:
         T = check_pose(cam_to_world_44)
         pix_bank = self._frame_feature_ids(feats_hwd, h, w)
 
-        vert_cam = backproject(depth, K, max_depth=self.config.max_depth)
-        nrm_cam = normal_map(vert_cam)
-        valid = np.isfinite(nrm_cam[..., 0]).ravel() & np.isfinite(vert_cam[..., 2]).ravel()
-        pix = np.flatnonzero(valid)
-        verts = transform_points(T, vert_cam.reshape(-1, 3)[pix])
-        nrms = transform_directions(T, nrm_cam.reshape(-1, 3)[pix])
-        cols = rgb.reshape(-1, 3)[pix]
-        alpha = _confidence(h, w, tuple(K.ravel().tolist()), self.config.sigma)[pix]
+        pix, obs, alpha = _kernels.frame_points(
+            np.ascontiguousarray(depth, np.float32),
+            np.ascontiguousarray(rgb, np.float32),
+            K,
+            T,
+            np.float32(min(self.config.max_depth, np.finfo(np.float32).max)),
+            _confidence(h, w, tuple(K.ravel().tolist()), self.config.sigma).reshape(h, w),
+        )
         bank = pix_bank[pix] if pix_bank is not None else np.full(len(pix), -1, np.int32)
 
-        pts, sel = self._associate(verts, nrms, pix, K, T, h, w)
+        pts, sel, covered = self._associate(obs, pix, K, T, h, w)
         if len(pts):
-            self._merge(pts, sel, np.concatenate([verts, nrms, cols], axis=1), alpha, bank)
-        fresh = np.ones(len(pix), bool)
+            self._merge(pts, sel, obs, alpha, bank)
+        fresh = ~covered
         fresh[sel] = False
-        self._append(verts[fresh], nrms[fresh], cols[fresh], alpha[fresh], bank[fresh])
+        self._append(obs[fresh], alpha[fresh], bank[fresh])
+        self._store.maybe_compact(self._n)
         self.frames_integrated += 1
-        stats = IntegrationStats(int(len(pts)), int(fresh.sum()), int(h * w - len(pix)), self._n)
+        stats = IntegrationStats(int(len(pts)), int(covered.sum()), int(fresh.sum()), int(h * w - len(pix)), self._n)
         logger.debug("integrated frame %d: %s", self.frames_integrated, stats)
         return stats
 
@@ -275,66 +269,41 @@ class PointFusionMap:
         ids[: len(palette)][nonzero] = self._store.add_to_bank(palette[nonzero])
         return ids[feats.index_hw.ravel()]
 
-    def _associate(self, verts, nrms, pix, K, T, h, w) -> tuple[np.ndarray, np.ndarray]:
-        """Projective data association: (map point index, valid-pixel index) pairs."""
+    def _associate(self, obs, pix, K, T, h, w) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
+        """Projective data association (see ``_kernels.associate``)."""
         if self._n == 0 or len(pix) == 0:
-            return np.zeros(0, np.int64), np.zeros(0, np.int64)
-        world_to_cam = np.linalg.inv(T)
-        geo = self._geo[: self._n]
-        uv, z = project_points(transform_points(world_to_cam, geo[:, _POS]), K)
-        with np.errstate(invalid="ignore"):
-            u = np.rint(uv[:, 0])
-            v = np.rint(uv[:, 1])
-            inb = (z > 0) & (u >= 0) & (u < w) & (v >= 0) & (v < h)
-        cand = np.flatnonzero(inb)
+            return np.zeros(0, np.int64), np.zeros(0, np.int64), np.zeros(len(pix), bool)
         pixel_to_valid = np.full(h * w, -1, np.int64)
         pixel_to_valid[pix] = np.arange(len(pix))
-        j = pixel_to_valid[(v[cand] * w + u[cand]).astype(np.int64)]
-        ok = j >= 0
-        cand, j = cand[ok], j[ok]
-        rows = np.take(geo, cand, axis=0)
-        diff = rows[:, _POS] - np.take(verts, j, axis=0)
-        dist2 = np.einsum("nd,nd->n", diff, diff)
-        cos_ang = np.einsum("nd,nd->n", rows[:, _NRM], np.take(nrms, j, axis=0))
-        ok = (dist2 < self.config.dist_th**2) & (cos_ang >= math.cos(math.radians(self.config.angle_th_deg)))
-        cand, j, dist2, conf = cand[ok], j[ok], dist2[ok], rows[ok, _CONF]
-        # Each point projects onto one pixel; where several points share a pixel, keep the
-        # most confident, then the nearest.
-        best = np.full(len(pix), -np.inf, np.float32)
-        np.maximum.at(best, j, conf)
-        top = conf == best[j]
-        cand, j, dist2 = cand[top], j[top], dist2[top]
-        nearest = np.full(len(pix), np.inf, np.float32)
-        np.minimum.at(nearest, j, dist2)
-        top = dist2 == nearest[j]
-        cand, j = cand[top], j[top]
-        winner = np.full(len(pix), -1, np.int64)
-        winner[j] = cand  # exact ties: one of the tied points
-        j = np.flatnonzero(winner >= 0)
-        cand = winner[j]
-        return cand, j
+        return _kernels.associate(
+            self._geo,
+            self._n,
+            np.linalg.inv(T),
+            K,
+            pixel_to_valid,
+            np.ascontiguousarray(obs[:, 0:3]),
+            np.ascontiguousarray(obs[:, 3:6]),
+            np.float32(self.config.dist_th**2),
+            np.float32(math.cos(math.radians(self.config.angle_th_deg))),
+            h,
+            w,
+        )
 
     def _merge(self, pts, sel, obs, alpha, bank) -> None:
-        rows = np.take(self._geo, pts, axis=0)
-        a = alpha[sel][:, None]
-        c = rows[:, _CONF, None]
-        denom = c + a
-        rows[:, :9] = (c * rows[:, :9] + a * np.take(obs, sel, axis=0)) / denom
-        n = rows[:, _NRM]
-        rows[:, _NRM] = n / np.maximum(np.sqrt(np.einsum("nd,nd->n", n, n))[:, None], 1e-12)
-        rows[:, _CONF] = denom[:, 0]
-        self._geo[pts] = rows
-        self._store.merge(pts, bank[sel], alpha[sel])
+        _kernels.merge_geometry(self._geo, pts, sel, obs, alpha)
+        self._store.add_observations(pts, bank[sel], alpha[sel])
 
-    def _append(self, verts, nrms, cols, alpha, bank) -> None:
-        m = len(verts)
+    def _append(self, obs, alpha, bank) -> None:
+        m = len(obs)
         if m == 0:
             return
         self._reserve(m)
         rows = np.arange(self._n, self._n + m)
         block = self._geo[self._n : self._n + m]
-        block[:, _POS], block[:, _NRM], block[:, _RGB], block[:, _CONF] = verts, nrms, cols, alpha
-        self._store.init_points(rows, bank, alpha)
+        block[:, :9] = obs
+        block[:, _CONF] = alpha
+        self._store.clear_rows(self._n, self._n + m)
+        self._store.add_observations(rows, bank, alpha)
         self._n += m
 
     # ------------------------------------------------------------------ state

@@ -31,10 +31,9 @@ _EXPECTED = {
     # name: (dtype kind, ndim, rows are points?)
     "geometry": ("f", 2, True),
     "feat_bank": ("f", 2, False),
-    "feat_hist_ids": ("i", 2, False),
-    "feat_hist_len": ("i", 1, False),
-    "feat_point_hist": ("i", 1, True),
+    "feat_point_ids": ("i", 2, True),
     "feat_point_w": ("f", 2, True),
+    "feat_point_gram": ("f", 2, True),
     "feat_point_sq": ("f", 1, True),
 }
 
@@ -95,14 +94,17 @@ def _validate(p: Path, header: dict, arrays: dict[str, np.ndarray]) -> None:
                 + (f", {n} rows" if per_point else "")
                 + f"; got {a.dtype}, shape {a.shape}"
             )
-    if arrays["feat_bank"].shape[1] != d or arrays["feat_point_w"].shape[1] != slots:
+    tri = slots * (slots + 1) // 2
+    if (
+        arrays["feat_bank"].shape[1] != d
+        or arrays["feat_point_ids"].shape[1] != slots
+        or arrays["feat_point_w"].shape[1] != slots
+        or arrays["feat_point_gram"].shape[1] != tri
+    ):
         raise MapFormatError(f"{p}: feature arrays do not match feature_dim={d}, slots={slots}")
-    hist = arrays["feat_point_hist"]
-    if hist.size and (hist.min() < 0 or hist.max() >= len(arrays["feat_hist_len"])):
-        raise MapFormatError(f"{p}: point histories refer to missing entries")
-    ids = arrays["feat_hist_ids"]
-    if ids.size and ids.max() >= len(arrays["feat_bank"]):
-        raise MapFormatError(f"{p}: histories refer to missing feature bank rows")
+    ids = arrays["feat_point_ids"]
+    if ids.size and (ids.min() < -1 or ids.max() >= len(arrays["feat_bank"])):
+        raise MapFormatError(f"{p}: points refer to missing feature bank rows")
 
 
 def heatmap_colors(values_n: np.ndarray, *, nan_color=(128, 128, 128)) -> np.ndarray:
