@@ -292,3 +292,40 @@ def frame_points(depth, rgb, K, cam_to_world, max_depth, conf_hw):
             alpha[i] = conf_hw[r, c]
             i += 1
     return pix[:i], obs[:i], alpha[:i]
+
+
+@njit(cache=True, nogil=True)
+def lookup_tables(point_ids, rows, new_ids, num_bank):
+    """Row and column numbering of the bank entries one fusion step compares.
+
+    Returns ``(atoms, lut_atom, cols, lut_new)``: the sorted bank ids held by the points
+    ``rows`` and the map from bank id to their position (-1 elsewhere); the same for the
+    frame's ids ``new_ids``.
+    """
+    lut_atom = np.full(num_bank, -1, np.int32)
+    lut_new = np.full(num_bank, -1, np.int32)
+    for i in range(rows.shape[0]):
+        p = rows[i]
+        for k in range(point_ids.shape[1]):
+            idk = point_ids[p, k]
+            if idk < 0:
+                break
+            lut_atom[idk] = 0
+        lut_new[new_ids[i]] = 0
+    na = 0
+    nc = 0
+    for b in range(num_bank):
+        if lut_atom[b] == 0:
+            lut_atom[b] = na
+            na += 1
+        if lut_new[b] == 0:
+            lut_new[b] = nc
+            nc += 1
+    atoms = np.empty(na, np.int64)
+    cols = np.empty(nc, np.int64)
+    for b in range(num_bank):
+        if lut_atom[b] >= 0:
+            atoms[lut_atom[b]] = b
+        if lut_new[b] >= 0:
+            cols[lut_new[b]] = b
+    return atoms, lut_atom, cols, lut_new

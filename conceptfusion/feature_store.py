@@ -150,18 +150,10 @@ class FeatureStore:
     def _frame_block(self, rows: np.ndarray, new_ids: np.ndarray):
         """Dot products between the bank entries held by ``rows`` and the frame's entries.
 
-        Returns ``(lut_atom, lut_new, block)``: bank id -> row / column of ``block``
-        (-1 where unused), ``block`` (A, P) float32.
+        Returns ``(lut_atom, lut_new, block, cols)``: bank id -> row / column of ``block``
+        (-1 where unused), ``block`` (A, P) float32, and the frame's bank ids (P,).
         """
-        held = self.point_ids[rows]
-        mark = np.zeros(self._num_bank, bool)
-        mark[held[held >= 0]] = True
-        atoms = np.flatnonzero(mark)
-        lut_atom = np.full(self._num_bank, -1, np.int32)
-        lut_atom[atoms] = np.arange(len(atoms), dtype=np.int32)
-        cols = np.unique(new_ids)
-        lut_new = np.full(self._num_bank, -1, np.int32)
-        lut_new[cols] = np.arange(len(cols), dtype=np.int32)
+        atoms, lut_atom, cols, lut_new = _kernels.lookup_tables(self.point_ids, rows, new_ids, self._num_bank)
         block = self.bank[atoms] @ self.bank[cols].T
         return lut_atom, lut_new, np.ascontiguousarray(block, np.float32), cols
 
