@@ -128,7 +128,7 @@ def normal_map(vertex_hw3: np.ndarray) -> np.ndarray:
     """Unit surface normals from a vertex map, by central differences.
 
     Normals point towards the camera (``n . v < 0`` for a camera-frame vertex map). Border
-    pixels and pixels with an invalid neighbour get NaN normals.
+    pixels and pixels that are invalid or have an invalid neighbour get NaN normals.
 
     Shape:
         ``vertex_hw3`` (H, W, 3) -> ``normals_hw3`` (H, W, 3) float32.
@@ -145,7 +145,7 @@ def normal_map(vertex_hw3: np.ndarray) -> np.ndarray:
         c = c / norm
         flip = np.sum(c * v[1:-1, 1:-1], axis=-1, keepdims=True) > 0
     c = np.where(flip, -c, c)
-    c[~np.isfinite(norm[..., 0]) | (norm[..., 0] == 0)] = np.nan
+    c[~np.isfinite(norm[..., 0]) | (norm[..., 0] == 0) | ~np.isfinite(v[1:-1, 1:-1, 2])] = np.nan
     n[1:-1, 1:-1] = c
     return n
 

@@ -161,3 +161,48 @@ def test_bad_inputs_get_clear_errors():
     with pytest.raises(ValueError, match="non-zero"):
         fmap.scores(np.zeros(3))
     assert len(fmap) == 0  # nothing was fused by the failed calls
+
+
+def test_compiled_frame_points_match_the_numpy_reference():
+    from conceptfusion import _kernels
+    from conceptfusion.cameras import backproject, normal_map, radial_confidence, transform_directions, transform_points
+
+    pose = look_at((0.4, -0.3, 0.9), (0.0, 0.1, 0.0))
+    f = render_boxes(FLOOR + [Box("cube", (0.0, 0.0, 0.1), (0.2, 0.2, 0.2), (200, 0, 0))], K, pose, H, W)
+    depth = f.depth_hw.copy()
+    depth[3, 7] = np.nan
+    conf = radial_confidence(H, W, K)
+    pix, obs, alpha = _kernels.frame_points(depth, f.rgb_hw3.astype(np.float32), K, pose, np.float32(10.0), conf)
+    v = backproject(depth, K, max_depth=10.0)
+    n = normal_map(v)
+    valid = np.flatnonzero(np.isfinite(n[..., 0]).ravel())
+    assert np.array_equal(pix, valid)
+    assert np.allclose(obs[:, :3], transform_points(pose, v.reshape(-1, 3)[valid]), atol=1e-5)
+    assert np.allclose(obs[:, 3:6], transform_directions(pose, n.reshape(-1, 3)[valid]), atol=1e-5)
+    assert np.array_equal(obs[:, 6:], f.rgb_hw3.reshape(-1, 3)[valid].astype(np.float32))
+    assert np.array_equal(alpha, conf.ravel()[valid])
+
+
+def test_compact_features_equal_exact_running_means_within_slots():
+    # Fuse frames whose per-pixel features differ, then compare with a brute-force
+    # dense running mean (eq. 1) tracked for the points that exist from frame one.
+    rng = np.random.default_rng(3)
+    pose = look_at((0.0, 0.0, 1.0), (0.0, 0.001, 0.0))
+    f = _floor_frame(pose)
+    fmap = PointFusionMap(6, slots=4)
+    dense_sum = None
+    for t in range(4):
+        pal = rng.normal(size=(5, 6)).astype(np.float32)
+        idx = rng.integers(-1, 5, size=(H, W)).astype(np.int32)
+        fmap.integrate(f.rgb_hw3, f.depth_hw, K, pose, PixelFeatures(pal, idx))
+        alpha = fmap.confidence / (t + 1)  # the same alpha every frame at a fixed pose
+        feat = np.concatenate([pal, np.zeros((1, 6), np.float32)])[idx[1:-1, 1:-1].ravel()]
+        contrib = alpha[:, None] * feat
+        dense_sum = contrib if dense_sum is None else dense_sum + contrib
+    expect = dense_sum / np.maximum(np.linalg.norm(dense_sum, axis=1, keepdims=True), 1e-12)
+    assert np.allclose(fmap.features(), expect, atol=1e-5)
+    q = rng.normal(size=6)
+    cos = expect @ q / np.linalg.norm(q)
+    has = np.linalg.norm(dense_sum, axis=1) > 0
+    assert np.allclose(fmap.scores(q)[has], cos[has], atol=1e-5)
+    assert np.isnan(fmap.scores(q)[~has]).all()
