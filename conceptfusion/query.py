@@ -150,10 +150,11 @@ def connected_regions(
     label = voxel_label[point_voxel.ravel()]
     regions = []
     scores = np.asarray(scores_n, np.float32)
-    for lab in np.unique(label):
-        members = idx[label == lab]
-        if len(members) < min_points:
-            continue
+    order = np.argsort(label, kind="stable")
+    counts = np.bincount(label)
+    starts = np.concatenate([[0], np.cumsum(counts)])
+    for lab in np.flatnonzero(counts >= min_points):
+        members = idx[order[starts[lab] : starts[lab + 1]]]
         regions.append(Region(points_n3=pts[members].astype(np.float64), scores_n=scores[members], indices_n=members))
     regions.sort(key=lambda reg: (-reg.score, -reg.num_points))
     return regions
