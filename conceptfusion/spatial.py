@@ -31,14 +31,18 @@ Summary of the geometric definitions (each function's docstring has the details)
 from __future__ import annotations
 
 import difflib
-import math
 from dataclasses import dataclass
 from typing import Protocol
 
 import numpy as np
-from scipy.spatial import ConvexHull, cKDTree
-from scipy.spatial import QhullError
-
+from conceptfusion.region_geometry import (
+    check_nonneg as _check_nonneg,
+    check_trim as _check_trim,
+    closest_points_distance,
+    footprint_overlap as _overlap_fraction,
+    oriented_extents,
+    robust_bounds,
+)
 from conceptfusion.regions import Region
 
 __all__ = [
@@ -61,7 +65,6 @@ __all__ = [
 ]
 
 _UP_3 = np.array([0.0, 0.0, 1.0])
-_MIN_FOOTPRINT = 1e-3  # metres: footprints thinner than this are padded to it
 _EPS = 1e-9  # metres: floating-point slack on every threshold comparison
 _DEFAULT_NAMES = ("object1", "object2")
 
@@ -104,84 +107,6 @@ class Comparator(Protocol):
     """A 3DSC: two regions (or ``None`` when not found) in, one :class:`SpatialAnswer` out."""
 
     def __call__(self, region_a: Region | None, region_b: Region | None, /, **kwargs) -> SpatialAnswer: ...
-
-
-# ---------------------------------------------------------------------------------------------
-# Geometry helpers
-# ---------------------------------------------------------------------------------------------
-
-
-def _check_trim(trim_pct: float) -> float:
-    trim = float(trim_pct)
-    if not 0.0 <= trim < 50.0:
-        raise ValueError(f"trim_pct: expected a percentage in [0, 50), got {trim_pct!r}")
-    return trim
-
-
-def _check_nonneg(name: str, value: float) -> float:
-    v = float(value)
-    if not (math.isfinite(v) and v >= 0.0):
-        raise ValueError(f"{name}: expected a finite number >= 0, got {value!r}")
-    return v
-
-
-def robust_bounds(points_n3: np.ndarray, trim_pct: float = 1.0) -> tuple[np.ndarray, np.ndarray]:
-    """Per-axis lower and upper bounds that ignore the ``trim_pct`` % most extreme points.
-
-    Shape:
-        ``points_n3`` (N, D) with N >= 1; returns two (D,) arrays.
-    """
-    trim = _check_trim(trim_pct)
-    pts = np.asarray(points_n3, dtype=np.float64)
-    if trim == 0.0:
-        return pts.min(axis=0), pts.max(axis=0)
-    lo = np.percentile(pts, trim, axis=0, method="lower")
-    hi = np.percentile(pts, 100.0 - trim, axis=0, method="higher")
-    return lo, hi
-
-
-def _yaw_candidates(xy_n2: np.ndarray) -> np.ndarray:
-    """Edge directions of the 2D convex hull, folded into [0, pi/2) (plus 0)."""
-    try:
-        hull = ConvexHull(xy_n2)
-    except (QhullError, ValueError):  # fewer than 3 points or all collinear
-        return np.zeros(1)
-    verts = xy_n2[hull.vertices]
-    edges = np.roll(verts, -1, axis=0) - verts
-    angles = np.mod(np.arctan2(edges[:, 1], edges[:, 0]), np.pi / 2)
-    return np.unique(np.concatenate([[0.0], angles]))
-
-
-def oriented_extents(points_n3: np.ndarray, trim_pct: float = 1.0) -> np.ndarray:
-    """Extents of the smallest-footprint box with a vertical axis (yaw-only rotation).
-
-    The yaw is the minimum-area rectangle of the footprint (rotating calipers over the convex
-    hull edges of the xy points); the extents along that yaw and along z are then taken with
-    :func:`robust_bounds`, and the world-axis box is kept when it is smaller after trimming.
-
-    Shape:
-        ``points_n3`` (N, 3); returns (3,) ``[extent_u, extent_v, extent_z]`` with u, v
-        horizontal.
-    """
-    pts = np.asarray(points_n3, dtype=np.float64)
-    xy = pts[:, :2]
-    angles = _yaw_candidates(xy)
-    c, s = np.cos(angles), np.sin(angles)
-    # Hull vertices decide the yaw (cheap, exact for the untrimmed set) ...
-    u = xy[:, :1] * c + xy[:, 1:] * s  # (N, K)
-    v = -xy[:, :1] * s + xy[:, 1:] * c
-    areas = (u.max(0) - u.min(0)) * (v.max(0) - v.min(0))
-    best = float(angles[int(np.argmin(areas))])
-    # ... and the extents at that yaw are trimmed like every other box.
-    z_lo, z_hi = robust_bounds(pts[:, 2:], trim_pct)
-    extents = []
-    for yaw in (0.0, best):
-        cy, sy = math.cos(yaw), math.sin(yaw)
-        rot = np.stack([xy[:, 0] * cy + xy[:, 1] * sy, -xy[:, 0] * sy + xy[:, 1] * cy], axis=1)
-        lo, hi = robust_bounds(rot, trim_pct)
-        extents.append(hi - lo)
-    uv = min(extents, key=lambda e: float(e[0] * e[1]))
-    return np.array([uv[0], uv[1], float(z_hi[0] - z_lo[0])])
 
 
 def _check_region(name: str, region) -> None:
@@ -251,14 +176,6 @@ def _answer(relation: str, value, reason: str, **details: float) -> SpatialAnswe
 # ---------------------------------------------------------------------------------------------
 
 
-def _closest(region_a: Region, region_b: Region, trim_pct: float) -> float:
-    """Low percentile of the nearest-neighbour distances between the two point sets."""
-    d_ab, _ = cKDTree(region_b.points_n3).query(region_a.points_n3, k=1)
-    d_ba, _ = cKDTree(region_a.points_n3).query(region_b.points_n3, k=1)
-    d = np.concatenate([d_ab, d_ba])
-    return float(np.percentile(d, trim_pct, method="lower")) if trim_pct > 0 else float(d.min())
-
-
 def how_far(
     region_a: Region | None,
     region_b: Region | None,
@@ -279,7 +196,7 @@ def how_far(
         return miss
     trim = _check_trim(trim_pct)
     d = float(np.linalg.norm(_center(region_a, center) - _center(region_b, center)))
-    closest = _closest(region_a, region_b, trim)
+    closest = closest_points_distance(region_a.points_n3, region_b.points_n3, trim)
     return _answer(
         "howFar",
         d,
@@ -304,7 +221,7 @@ def closest_distance(
     """
     if (miss := _missing("closestDistance", region_a, region_b, names)) is not None:
         return miss
-    d = _closest(region_a, region_b, _check_trim(trim_pct))
+    d = closest_points_distance(region_a.points_n3, region_b.points_n3, _check_trim(trim_pct))
     return _answer("closestDistance", d, f"closest surfaces of {names[0]!r} and {names[1]!r} are {d:.2f} m apart", closest=d)
 
 
@@ -415,22 +332,6 @@ def is_to_the_right(
 # ---------------------------------------------------------------------------------------------
 # Support
 # ---------------------------------------------------------------------------------------------
-
-
-def _footprint(lo: np.ndarray, hi: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
-    """xy box padded to at least ``_MIN_FOOTPRINT`` per side."""
-    mid = (lo[:2] + hi[:2]) / 2.0
-    half = np.maximum(hi[:2] - lo[:2], _MIN_FOOTPRINT) / 2.0
-    return mid - half, mid + half
-
-
-def _overlap_fraction(lo_a, hi_a, lo_b, hi_b) -> float:
-    """Footprint intersection area over the smaller footprint area."""
-    fa_lo, fa_hi = _footprint(lo_a, hi_a)
-    fb_lo, fb_hi = _footprint(lo_b, hi_b)
-    inter = np.clip(np.minimum(fa_hi, fb_hi) - np.maximum(fa_lo, fb_lo), 0.0, None)
-    smaller = min(float(np.prod(fa_hi - fa_lo)), float(np.prod(fb_hi - fb_lo)))
-    return float(np.prod(inter)) / smaller
 
 
 def _support(

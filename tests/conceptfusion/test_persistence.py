@@ -1,8 +1,6 @@
 """Saving and loading maps: exact round trip, continued fusion, refusing bad files."""
 
-import io
 import json
-import zipfile
 
 import numpy as np
 import pytest
