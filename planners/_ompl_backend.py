@@ -1,0 +1,293 @@
+"""OMPL plumbing shared by the base and joint-space planners: lookup table, seeding, solving.
+
+OMPL (2.x Python bindings) is imported inside the functions that need it, so importing the
+planners package costs nothing until a plan is requested.
+
+Determinism: OMPL draws every planner's and simplifier's random seed from one process-wide
+seed generator. :func:`solve` reseeds that generator before it builds anything, so the same
+seed, problem and planner give the same path, as long as neither the planner nor the
+simplifier stops on its time limit, the planner is single-threaded (not ``prm``/``prmstar``) and
+no other thread plans with OMPL at the same time.
+"""
+
+from __future__ import annotations
+
+import difflib
+import logging
+import time
+from dataclasses import dataclass
+from typing import Callable
+
+import numpy as np
+
+from planners.errors import PlannerTypeError, UnknownPlannerError
+
+__all__ = ["PLANNERS", "resolve_planner", "OmplOutcome", "solve"]
+
+_LOG = logging.getLogger(__name__)
+
+PLANNERS: dict[str, str] = {
+    "rrtconnect": "RRTConnect",
+    "rrt": "RRT",
+    "rrtstar": "RRTstar",
+    "informedrrtstar": "InformedRRTstar",
+    "prm": "PRM",
+    "prmstar": "PRMstar",
+    "kpiece": "KPIECE1",
+    "bitstar": "BITstar",
+}
+"""Planner names accepted by the planners of this package -> OMPL geometric class names.
+
+Optimising planners (``rrtstar``, ``informedrrtstar``, ``prmstar``, ``bitstar``) stop at their
+first exact solution unless asked to use the whole time limit. ``prm`` and ``prmstar`` grow
+their roadmap in a second thread, so their paths are not reproducible from the seed."""
+
+OPTIMISING = frozenset({"rrtstar", "informedrrtstar", "prmstar", "bitstar"})
+
+
+def resolve_planner(name: str) -> str:
+    """Return the canonical lookup-table key for ``name`` (case and ``-``/``_``/``*`` ignored).
+
+    Raises :class:`UnknownPlannerError` naming the closest valid names for an unknown name.
+    """
+    if not isinstance(name, str):
+        raise PlannerTypeError(f"planner: expected a str, got {type(name).__name__}")
+    key = name.strip().lower().replace("-", "").replace("_", "").replace("*", "star").replace(" ", "")
+    if key in PLANNERS:
+        return key
+    close = difflib.get_close_matches(key, list(PLANNERS), n=3, cutoff=0.5)
+    hint = f"; did you mean {', '.join(close)}?" if close else ""
+    raise UnknownPlannerError(f"unknown planner {name!r}{hint} (valid: {', '.join(PLANNERS)})")
+
+
+@dataclass(frozen=True)
+class OmplOutcome:
+    """What :func:`solve` found: an exact path or nothing, and why."""
+
+    solved: bool
+    """True when OMPL returned an exact solution that passed the final check."""
+    reason: str
+    """Why, in words."""
+    path: np.ndarray
+    """(N, D) waypoints, or (0, D) when not solved."""
+    elapsed_s: float
+    """Wall time in the planner and simplifier."""
+
+
+def _import_ompl():
+    from ompl import base as ob
+    from ompl import geometric as og
+    from ompl import util as ou
+
+    return ob, og, ou
+
+
+def _seed_ompl(ou, seed: int) -> None:
+    """Reseed OMPL's seed generator; OMPL needs a non-zero seed and complains on reseeding."""
+    previous = ou.getLogLevel()
+    ou.setLogLevel(ou.LogLevel.LOG_NONE)
+    try:
+        ou.RNG.setSeed(int(seed) % (2**31 - 1) + 1)
+    finally:
+        ou.setLogLevel(previous)
+
+
+_MOTION_VALIDATOR_CLASS = None
+
+
+def _motion_validator_class(ob):
+    """A MotionValidator subclass that delegates to a Python segment check (built once)."""
+    global _MOTION_VALIDATOR_CLASS
+    if _MOTION_VALIDATOR_CLASS is None:
+
+        class _CallbackMotionValidator(ob.MotionValidator):
+            def __init__(self, si, segment_valid, dim):
+                super().__init__(si)
+                self._segment_valid = segment_valid
+                self._dim = dim
+
+            def checkMotion(self, s1, s2):  # noqa: N802 - OMPL's name
+                d = self._dim
+                return bool(self._segment_valid(s1[0:d], s2[0:d]))
+
+        _MOTION_VALIDATOR_CLASS = _CallbackMotionValidator
+    return _MOTION_VALIDATOR_CLASS
+
+
+def solve(
+    *,
+    lower: np.ndarray,
+    upper: np.ndarray,
+    start: np.ndarray,
+    goal: np.ndarray,
+    state_valid: Callable[[list], bool],
+    planner: str,
+    time_limit: float,
+    simplify_time: float,
+    seed: int,
+    segment_valid: Callable[[list, list], bool] | None = None,
+    resolution: float | None = None,
+    use_full_time: bool = False,
+    planner_range: float | None = None,
+) -> OmplOutcome:
+    """Plan from ``start`` to ``goal`` in a box-bounded R^D with OMPL, then simplify.
+
+    ``state_valid`` receives a state as a list of D floats. Motions are checked either by
+    ``segment_valid(a, b)`` (exact, e.g. a grid traversal) or, when it is None, by OMPL sampling
+    states ``resolution`` apart (same units as the state). ``planner`` is a canonical key of
+    :data:`PLANNERS`. The final path is checked again segment by segment; a simplified path that
+    fails the check is replaced by the raw planner path.
+
+    Shape:
+        lower, upper, start, goal: (D,) float64.
+    """
+    ob, og, ou = _import_ompl()
+    previous_level = ou.getLogLevel()
+    if not _LOG.isEnabledFor(logging.DEBUG):
+        # OMPL's default level (INFO) reports every query on stderr; keep warnings and errors.
+        ou.setLogLevel(ou.LogLevel.LOG_WARN)
+    try:
+        return _solve(
+            ob,
+            og,
+            ou,
+            lower=lower,
+            upper=upper,
+            start=start,
+            goal=goal,
+            state_valid=state_valid,
+            planner=planner,
+            time_limit=time_limit,
+            simplify_time=simplify_time,
+            seed=seed,
+            segment_valid=segment_valid,
+            resolution=resolution,
+            use_full_time=use_full_time,
+            planner_range=planner_range,
+        )
+    finally:
+        ou.setLogLevel(previous_level)
+
+
+def _solve(
+    ob,
+    og,
+    ou,
+    *,
+    lower: np.ndarray,
+    upper: np.ndarray,
+    start: np.ndarray,
+    goal: np.ndarray,
+    state_valid: Callable[[list], bool],
+    planner: str,
+    time_limit: float,
+    simplify_time: float,
+    seed: int,
+    segment_valid: Callable[[list, list], bool] | None,
+    resolution: float | None,
+    use_full_time: bool,
+    planner_range: float | None,
+) -> OmplOutcome:
+    dim = int(len(lower))
+    _seed_ompl(ou, seed)
+
+    space = ob.RealVectorStateSpace(dim)
+    bounds = ob.RealVectorBounds(dim)
+    for i in range(dim):
+        bounds.setLow(i, float(lower[i]))
+        bounds.setHigh(i, float(upper[i]))
+    space.setBounds(bounds)
+    si = ob.SpaceInformation(space)
+
+    callback_error: list[BaseException] = []
+
+    def _valid(state) -> bool:
+        if callback_error:
+            return False
+        try:
+            return bool(state_valid(state[0:dim]))
+        except BaseException as exc:  # re-raised after solve; OMPL cannot carry it
+            callback_error.append(exc)
+            return False
+
+    si.setStateValidityChecker(_valid)
+    validator = None
+    if segment_valid is not None:
+
+        def _segment(a, b) -> bool:
+            if callback_error:
+                return False
+            try:
+                return bool(segment_valid(a, b))
+            except BaseException as exc:
+                callback_error.append(exc)
+                return False
+
+        validator = _motion_validator_class(ob)(si, _segment, dim)
+        si.setMotionValidator(validator)
+    elif resolution is not None:
+        extent = space.getMaximumExtent()
+        si.setStateValidityCheckingResolution(min(1.0, max(resolution / extent, 1e-6)))
+    si.setup()
+
+    ss = og.SimpleSetup(si)
+    s_state = si.allocState()
+    g_state = si.allocState()
+    for i in range(dim):
+        s_state[i] = float(start[i])
+        g_state[i] = float(goal[i])
+    ss.setStartAndGoalStates(s_state, g_state)
+    ompl_planner = getattr(og, PLANNERS[planner])(si)
+    if planner_range is not None and hasattr(ompl_planner, "setRange"):
+        ompl_planner.setRange(float(planner_range))
+    ss.setPlanner(ompl_planner)
+
+    objective = ob.PathLengthOptimizationObjective(si)
+    if not use_full_time:
+        # Any finite cost satisfies an infinite threshold: optimising planners stop at their
+        # first exact path instead of refining it until the time limit.
+        objective.setCostThreshold(ob.Cost(float("inf")))
+    ss.setOptimizationObjective(objective)
+    ss.setup()
+
+    t0 = time.perf_counter()
+    status = ss.solve(float(time_limit))
+    plan_s = time.perf_counter() - t0
+    if callback_error:
+        raise callback_error[0]
+    exact = bool(status) and ss.haveExactSolutionPath()
+    if not exact:
+        elapsed = time.perf_counter() - t0
+        return OmplOutcome(
+            False,
+            f"{PLANNERS[planner]} found no exact path in {plan_s:.3f} s (limit {time_limit:g} s; OMPL: {status})",
+            np.zeros((0, dim)),
+            elapsed,
+        )
+
+    raw = _path_array(ss.getSolutionPath(), dim)
+    path = raw
+    if simplify_time > 0.0 and len(raw) > 2:
+        ss.simplifySolution(float(simplify_time))
+        if callback_error:
+            raise callback_error[0]
+        path = _path_array(ss.getSolutionPath(), dim)
+        if not _path_ok(path, segment_valid, ss):
+            _LOG.warning("simplified path failed the final check; returning the raw planner path")
+            path = raw
+    elapsed = time.perf_counter() - t0
+    # Make the end points exact (OMPL copies them, but keep float round-off out of callers' way).
+    path = path.copy()
+    path[0], path[-1] = start, goal
+    return OmplOutcome(True, f"{PLANNERS[planner]} found a path in {plan_s:.3f} s", path, elapsed)
+
+
+def _path_array(path, dim: int) -> np.ndarray:
+    return np.array([path.getState(i)[0:dim] for i in range(path.getStateCount())], dtype=np.float64).reshape(-1, dim)
+
+
+def _path_ok(path: np.ndarray, segment_valid, ss) -> bool:
+    """Check every waypoint and every motion of a path (through the same checks OMPL used)."""
+    if segment_valid is not None:
+        return all(segment_valid(list(a), list(b)) for a, b in zip(path[:-1], path[1:]))
+    return bool(ss.getSolutionPath().check())
