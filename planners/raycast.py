@@ -1,10 +1,12 @@
 """Exact grid traversal of straight segments: which cells does a segment pass through?
 
-A segment is free when every cell it passes through is free (a supercover traversal: the
-parameters where the segment crosses grid lines are computed in closed form, and the cell of
-each piece between two crossings is taken at its midpoint). This is the motion check the 2-D
-planner uses, so a path it returns passes :func:`path_blocked_segments` by construction.
-A segment passing exactly through a cell corner also counts the cell beyond the corner.
+A segment is free when every cell it passes through is free. :func:`segment_cells` lists those
+cells in closed form (the parameters where the segment crosses grid lines, then the cell of each
+piece at its midpoint). :class:`SegmentChecker` is the fast scalar walk the planners call
+thousands of times (grid walk with early exit); where a segment passes through a cell corner,
+or within round-off of one, it also requires both side cells to be free, so it is never more
+permissive than :func:`segment_cells`. The 2-D planner checks motions with it, and
+:func:`path_blocked_segments` re-checks paths with it.
 """
 
 from __future__ import annotations
@@ -17,6 +19,9 @@ from planners._checks import as_float_array
 from planners.occupancy import OccupancyGrid
 
 __all__ = ["segment_cells", "segment_is_free", "path_blocked_segments", "SegmentChecker"]
+
+# Crossing parameters closer than this (fractions of the segment) count as one corner crossing.
+_TIE = 1e-9
 
 
 def _traverse(u0: float, v0: float, u1: float, v1: float) -> tuple[np.ndarray, np.ndarray]:
@@ -52,29 +57,64 @@ class SegmentChecker:
         self._flat = self._blocked.tobytes()
         self._ox = float(origin_xy[0])
         self._oy = float(origin_xy[1])
-        self._inv = 1.0 / float(resolution)
+        self._res = float(resolution)
 
     def point_free(self, x: float, y: float) -> bool:
         """True when the world point (x, y) lies in a free cell of the grid."""
-        u = (x - self._ox) * self._inv
-        v = (y - self._oy) * self._inv
+        u = (x - self._ox) / self._res
+        v = (y - self._oy) / self._res
         if not (0.0 <= u < self._w and 0.0 <= v < self._h):
             return False
         return not self._flat[int(v) * self._w + int(u)]
 
     def segment_free(self, x0: float, y0: float, x1: float, y1: float) -> bool:
-        """True when every cell the segment (x0, y0)-(x1, y1) passes through is free."""
+        """True when every cell the segment (x0, y0)-(x1, y1) passes through is free.
+
+        Scalar grid walk (Amanatides-Woo) with an early exit at the first blocked cell; where
+        the segment passes exactly through a cell corner, both side cells must be free too.
+        """
         if not (self.point_free(x0, y0) and self.point_free(x1, y1)):
             return False
-        u0, v0 = (x0 - self._ox) * self._inv, (y0 - self._oy) * self._inv
-        u1, v1 = (x1 - self._ox) * self._inv, (y1 - self._oy) * self._inv
-        if math.floor(u0) == math.floor(u1) and math.floor(v0) == math.floor(v1):
+        u0, v0 = (x0 - self._ox) / self._res, (y0 - self._oy) / self._res
+        u1, v1 = (x1 - self._ox) / self._res, (y1 - self._oy) / self._res
+        c, r = int(u0), int(v0)
+        c1, r1 = int(u1), int(v1)
+        if c == c1 and r == r1:
             return True
-        rows, cols = _traverse(u0, v0, u1, v1)
-        # Both end points are inside the (convex) grid, so every traversed cell is too.
-        np.clip(rows, 0, self._h - 1, out=rows)
-        np.clip(cols, 0, self._w - 1, out=cols)
-        return not self._blocked[rows, cols].any()
+        du, dv = u1 - u0, v1 - v0
+        inf = math.inf
+        if du > 0.0:
+            sc, t_c, dt_c = 1, (c + 1 - u0) / du, 1.0 / du
+        elif du < 0.0:
+            sc, t_c, dt_c = -1, (u0 - c) / -du, -1.0 / du
+        else:
+            sc, t_c, dt_c = 0, inf, inf
+        if dv > 0.0:
+            sr, t_r, dt_r = 1, (r + 1 - v0) / dv, 1.0 / dv
+        elif dv < 0.0:
+            sr, t_r, dt_r = -1, (v0 - r) / -dv, -1.0 / dv
+        else:
+            sr, t_r, dt_r = 0, inf, inf
+        flat, w = self._flat, self._w
+        # Every step moves towards the end cell, so the walk stays inside the bounding box of
+        # the two end cells (inside the grid) and ends after at most |dc| + |dr| steps.
+        while c != c1 or r != r1:
+            if r == r1 or (c != c1 and t_c < t_r - _TIE):
+                c += sc
+                t_c += dt_c
+            elif c == c1 or t_r < t_c - _TIE:
+                r += sr
+                t_r += dt_r
+            else:  # through (or within round-off of) a corner: both side cells count as touched
+                if flat[r * w + c + sc] or flat[(r + sr) * w + c]:
+                    return False
+                c += sc
+                r += sr
+                t_c += dt_c
+                t_r += dt_r
+            if flat[r * w + c]:
+                return False
+        return True
 
 
 def segment_cells(grid: OccupancyGrid, a_xy, b_xy) -> np.ndarray:
