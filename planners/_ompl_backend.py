@@ -265,14 +265,15 @@ def _solve(
             elapsed,
         )
 
-    raw = _path_array(ss.getSolutionPath(), dim)
+    solution = ss.getSolutionPath()
+    raw = _path_array(solution, dim)
     path = raw
     if simplify_time > 0.0 and len(raw) > 2:
-        ss.simplifySolution(float(simplify_time))
+        _simplify(og, si, solution, time.perf_counter() + simplify_time)
         if callback_error:
             raise callback_error[0]
-        path = _path_array(ss.getSolutionPath(), dim)
-        if not _path_ok(path, segment_valid, ss):
+        path = _path_array(solution, dim)
+        if not _path_ok(path, segment_valid, solution):
             _LOG.warning("simplified path failed the final check; returning the raw planner path")
             path = raw
     elapsed = time.perf_counter() - t0
@@ -282,12 +283,35 @@ def _solve(
     return OmplOutcome(True, f"{PLANNERS[planner]} found a path in {plan_s:.3f} s", path, elapsed)
 
 
+_SIMPLIFY_ROUNDS = 5
+
+
+def _simplify(og, si, path, deadline: float) -> None:
+    """Shorten ``path`` in place with a bounded amount of work.
+
+    Rounds of vertex reduction, partial shortcuts and collapsing close vertices, until a round
+    changes nothing, after :data:`_SIMPLIFY_ROUNDS` rounds, or at ``deadline`` (checked between
+    steps). Unlike OMPL's time-driven ``simplify``, the result does not depend on how fast the
+    machine is unless the deadline cuts it short.
+    """
+    simplifier = og.PathSimplifier(si)
+    for _ in range(_SIMPLIFY_ROUNDS):
+        changed = False
+        for step in (simplifier.reduceVertices, simplifier.partialShortcutPath, simplifier.collapseCloseVertices):
+            if time.perf_counter() > deadline:
+                _LOG.debug("path simplification stopped at its time limit")
+                return
+            changed = bool(step(path)) or changed
+        if not changed:
+            return
+
+
 def _path_array(path, dim: int) -> np.ndarray:
     return np.array([path.getState(i)[0:dim] for i in range(path.getStateCount())], dtype=np.float64).reshape(-1, dim)
 
 
-def _path_ok(path: np.ndarray, segment_valid, ss) -> bool:
+def _path_ok(path: np.ndarray, segment_valid, solution) -> bool:
     """Check every waypoint and every motion of a path (through the same checks OMPL used)."""
     if segment_valid is not None:
         return all(segment_valid(list(a), list(b)) for a, b in zip(path[:-1], path[1:]))
-    return bool(ss.getSolutionPath().check())
+    return bool(solution.check())

@@ -345,14 +345,19 @@ def reachable_goal_near(
     if mask is None:
         _LOG.info("no goal near the object: the start %s is blocked or outside the grid", start.tolist())
         return None
-    cells = np.argwhere(mask)
+    # Only cells inside the footprint's bounding box grown by the standoff can qualify.
+    h, w = grid.shape
+    r0, c0 = np.maximum(grid.world_to_cell(footprint.min(axis=0) - standoff), 0)
+    r1, c1 = np.minimum(grid.world_to_cell(footprint.max(axis=0) + standoff) + 1, (h, w))
+    cells = np.argwhere(mask[r0:r1, c0:c1]) + np.array([r0, c0])
+    if len(cells) == 0:
+        _LOG.info("no reachable free cell within %.3f m of the object's bounding box", standoff)
+        return None
     centres = grid.cell_to_world(cells)
-    dist, _ = cKDTree(footprint).query(centres, k=1)
+    dist, _ = cKDTree(footprint).query(centres, k=1, distance_upper_bound=standoff * (1 + 1e-9) + 1e-12)
     near = dist <= standoff
     if not near.any():
-        _LOG.info(
-            "no reachable free cell within %.3f m of the object (closest reachable: %.3f m)", standoff, dist.min()
-        )
+        _LOG.info("no reachable free cell within %.3f m of the object", standoff)
         return None
     centres, dist = centres[near], dist[near]
     to_start = np.linalg.norm(centres - start, axis=1)

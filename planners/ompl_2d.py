@@ -39,8 +39,10 @@ class BasePlannerConfig:
     """A key of :data:`PLANNERS` (``"rrtconnect"``, ``"rrtstar"``, ``"prm"``, ...)."""
     time_limit: float = 1.0
     """Seconds OMPL may search before the query answers ``"timeout"``."""
-    simplify_time: float = 0.1
-    """Seconds for shortcutting the found path; 0 keeps the raw planner path."""
+    simplify_time: float = 0.25
+    """Upper bound in seconds on shortcutting the found path (the work is also bounded by a fixed
+    number of rounds; paths repeat for a seed only when this bound is not reached); 0 keeps the
+    raw planner path."""
     unknown_is_free: bool = True
     """Whether unobserved cells may be crossed (False: they block like obstacles)."""
     use_full_time: bool = False
