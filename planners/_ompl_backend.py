@@ -42,8 +42,6 @@ Optimising planners (``rrtstar``, ``informedrrtstar``, ``prmstar``, ``bitstar``)
 first exact solution unless asked to use the whole time limit. ``prm`` and ``prmstar`` grow
 their roadmap in a second thread, so their paths are not reproducible from the seed."""
 
-OPTIMISING = frozenset({"rrtstar", "informedrrtstar", "prmstar", "bitstar"})
-
 
 def resolve_planner(name: str) -> str:
     """Return the canonical lookup-table key for ``name`` (case and ``-``/``_``/``*`` ignored).
@@ -266,16 +264,25 @@ def _solve(
         )
 
     solution = ss.getSolutionPath()
+    raw_solution = og.PathGeometric(solution)
     raw = _path_array(solution, dim)
-    path = raw
-    if simplify_time > 0.0 and len(raw) > 2:
+    simplified = simplify_time > 0.0 and len(raw) > 2
+    if simplified:
         _simplify(og, si, solution, time.perf_counter() + simplify_time)
-        if callback_error:
-            raise callback_error[0]
-        path = _path_array(solution, dim)
-        if not _path_ok(path, segment_valid, solution):
-            _LOG.warning("simplified path failed the final check; returning the raw planner path")
-            path = raw
+    path = _path_array(solution, dim)
+    ok = _path_ok(path, segment_valid, solution)
+    if not ok and simplified and _path_ok(raw, segment_valid, raw_solution):
+        _LOG.warning("simplified path failed the final check; returning the raw planner path")
+        path, ok = raw, True
+    if callback_error:
+        raise callback_error[0]
+    if not ok:
+        return OmplOutcome(
+            False,
+            f"{PLANNERS[planner]} returned a path that fails the final motion check",
+            np.zeros((0, dim)),
+            time.perf_counter() - t0,
+        )
     elapsed = time.perf_counter() - t0
     # Make the end points exact (OMPL copies them, but keep float round-off out of callers' way).
     path = path.copy()

@@ -78,7 +78,9 @@ def plan_base_path(
     :class:`PlanResult` status with a reason. Raises ``TypeError``/``ValueError`` for bad input
     (wrong shapes, NaN, unknown planner name).
 
-    The same ``seed`` gives the same path (see :mod:`planners._ompl_backend` for the caveats).
+    The same ``seed`` gives the same path as long as neither planning nor shortcutting reaches
+    its time limit, the planner is single-threaded (not ``prm``/``prmstar``) and no other thread
+    plans with OMPL at the same time (OMPL seeds from one process-wide generator).
 
     Shape:
         start_xy, goal_xy: (2,) world x, y in metres.

@@ -52,7 +52,9 @@ def test_already_on_the_requested_side():
 
 def test_diagonal_line():
     # Line through (1, 1) along (1, 1); viewer faces +y (right = +x) -> normal (1, -1)/sqrt 2.
-    plan = plan_push([0.0, 1.0, 0.7], [1.0, 1.0, 0.7], [1.0, 1.0, 0.0], "right", view_dir=[0.0, 1.0], radius=0.1, margin=0.1)
+    plan = plan_push(
+        [0.0, 1.0, 0.7], [1.0, 1.0, 0.7], [1.0, 1.0, 0.0], "right", view_dir=[0.0, 1.0], radius=0.1, margin=0.1
+    )
     np.testing.assert_allclose(plan.push_direction, [S2, -S2, 0.0])
     assert plan.signed_distance == pytest.approx(-S2)  # (-1, 0) . (1, -1)/sqrt 2
     assert plan.push_distance == pytest.approx(S2 + 0.1)
