@@ -354,8 +354,9 @@ def reachable_goal_near(
         _LOG.info("no reachable free cell within %.3f m of the object's bounding box", standoff)
         return None
     centres = grid.cell_to_world(cells)
-    dist, _ = cKDTree(footprint).query(centres, k=1, distance_upper_bound=standoff * (1 + 1e-9) + 1e-12)
-    near = dist <= standoff
+    reach = standoff * (1.0 + 1e-9) + 1e-12  # a cell at exactly `standoff` qualifies despite round-off
+    dist, _ = cKDTree(footprint).query(centres, k=1, distance_upper_bound=reach)
+    near = dist <= reach
     if not near.any():
         _LOG.info("no reachable free cell within %.3f m of the object", standoff)
         return None
