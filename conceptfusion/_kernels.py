@@ -9,7 +9,7 @@ tested against the map's behaviour, not re-implemented elsewhere.
 from __future__ import annotations
 
 import numpy as np
-from numba import njit, prange
+from numba import njit
 
 __all__ = ["associate", "merge_geometry", "merge_features", "mixture_scores"]
 
@@ -204,7 +204,7 @@ def merge_features(point_ids, point_w, point_gram, point_sq, rows, ids, alpha, l
         point_w[p, j] += alpha[i]
 
 
-@njit(cache=True, parallel=True)
+@njit(cache=True, nogil=True)
 def mixture_scores(point_ids, point_w, point_sq, bank_scores, n):
     """Cosine score of each point's mixture: ``sum_k w_k bank_scores[id_k] / sqrt(|S|^2)``.
 
@@ -212,7 +212,7 @@ def mixture_scores(point_ids, point_w, point_sq, bank_scores, n):
     """
     out = np.empty(n, np.float32)
     k_slots = point_ids.shape[1]
-    for p in prange(n):
+    for p in range(n):
         if point_ids[p, 0] < 0 or point_sq[p] <= 0.0:
             out[p] = np.nan
             continue
