@@ -129,3 +129,18 @@ def test_ply_export_rgb_and_heatmap(tmp_path):
     assert heat[-1, 0] > heat[-1, 2] and heat[1, 2] > heat[1, 0]  # high red, low blue
     with pytest.raises(ValueError, match="values_n"):
         export_ply(fmap, tmp_path / "bad.ply", values_n=np.zeros(3))
+
+
+def test_atomic_writes_get_the_usual_file_mode(tmp_path):
+    import os
+    import stat
+
+    from conceptfusion.io_utils import atomic_write_text
+
+    mask = os.umask(0o022)
+    try:
+        path = atomic_write_text(tmp_path / "a.txt", "hello")
+    finally:
+        os.umask(mask)
+    assert path.read_text() == "hello"
+    assert stat.S_IMODE(path.stat().st_mode) == 0o644
