@@ -1,0 +1,199 @@
+"""RGB-D + instance segmentation cameras for MuJoCo, headless and fast.
+
+One frame takes two render passes: a colour pass, and a flat-colour segmentation pass whose
+depth buffer gives metric depth at the same time. Shadows, reflections and multisampling are
+off by default (they cost 10x in colour rendering on a software rasteriser and add nothing
+a mapping pipeline needs). Create one camera per process; never share one across processes.
+
+Outputs follow the :mod:`conceptfusion` conventions: OpenCV camera frame, 4x4 float64
+camera-to-world pose, metric depth along the optical axis (``inf`` where nothing is hit).
+"""
+
+from __future__ import annotations
+
+from dataclasses import dataclass
+
+import numpy as np
+
+from sim_envs import headless  # noqa: F401  (selects the GL backend before mujoco loads)
+
+import mujoco  # noqa: E402
+
+from conceptfusion.cameras import intrinsics_from_fovy, opengl_to_opencv_pose  # noqa: E402
+
+__all__ = ["RGBDFrame", "MujocoRGBDCamera", "look_at_gl"]
+
+
+@dataclass(frozen=True)
+class RGBDFrame:
+    """One posed RGB-D frame with instance segmentation.
+
+    Shape:
+        ``rgb`` (H, W, 3) uint8; ``depth`` (H, W) float32 metres (``inf``: nothing hit);
+        ``segmentation`` (H, W) int32 object index (-1: background or unnamed geometry);
+        ``K`` (3, 3); ``cam_to_world`` (4, 4) OpenCV convention.
+    """
+
+    rgb: np.ndarray
+    depth: np.ndarray
+    segmentation: np.ndarray
+    K: np.ndarray
+    cam_to_world: np.ndarray
+
+
+def look_at_gl(eye, target, up=(0.0, 0.0, 1.0)) -> tuple[np.ndarray, np.ndarray]:
+    """Position and 3x3 rotation (columns: camera x, y, z in world) of an OpenGL-style camera
+    at ``eye`` looking at ``target`` (the camera looks along its -z axis, y up).
+    """
+    eye = np.asarray(eye, np.float64)
+    back = eye - np.asarray(target, np.float64)
+    n = np.linalg.norm(back)
+    if n < 1e-9:
+        raise ValueError("look_at_gl: eye and target coincide")
+    back /= n
+    right = np.cross(np.asarray(up, np.float64), back)
+    if np.linalg.norm(right) < 1e-9:
+        raise ValueError("look_at_gl: viewing direction is parallel to 'up'")
+    right /= np.linalg.norm(right)
+    upv = np.cross(back, right)
+    return eye, np.stack([right, upv, back], axis=1)
+
+
+class MujocoRGBDCamera:
+    """A free camera rendering colour, depth and instance segmentation of a MuJoCo model.
+
+    Args:
+        model, data: the simulation.
+        width, height: image size in pixels.
+        fovy_deg: vertical field of view.
+        geom_object: per geom id, the object index its pixels report (-1: none).
+        fast: turn shadows, reflections and multisampling off.
+    """
+
+    def __init__(
+        self,
+        model: mujoco.MjModel,
+        data: mujoco.MjData,
+        width: int,
+        height: int,
+        *,
+        fovy_deg: float = 60.0,
+        geom_object: np.ndarray | None = None,
+        fast: bool = True,
+    ) -> None:
+        from mujoco import gl_context
+
+        if width <= 0 or height <= 0:
+            raise ValueError(f"width, height: expected positive sizes, got {width}x{height}")
+        if fast:
+            model.vis.quality.offsamples = 0
+        model.vis.global_.offwidth = max(model.vis.global_.offwidth, width)
+        model.vis.global_.offheight = max(model.vis.global_.offheight, height)
+        self.model, self.data = model, data
+        self.width, self.height = int(width), int(height)
+        self.fovy_deg = float(fovy_deg)
+        self.K = intrinsics_from_fovy(self.fovy_deg, self.width, self.height)
+        self._gl = gl_context.GLContext(self.width, self.height)
+        self._gl.make_current()
+        self._ctx = mujoco.MjrContext(model, mujoco.mjtFontScale.mjFONTSCALE_150)
+        mujoco.mjr_setBuffer(mujoco.mjtFramebuffer.mjFB_OFFSCREEN, self._ctx)
+        self._scene = mujoco.MjvScene(model, maxgeom=10000)
+        self._opt = mujoco.MjvOption()
+        self._pert = mujoco.MjvPerturb()
+        self._cam = mujoco.MjvCamera()
+        self._cam.type = mujoco.mjtCamera.mjCAMERA_FREE
+        self._rect = mujoco.MjrRect(0, 0, self.width, self.height)
+        self._fast = fast
+        lut = np.full(model.ngeom + 1, -1, np.int32)
+        if geom_object is not None:
+            lut[: model.ngeom] = np.asarray(geom_object, np.int32)
+        self._geom_object = lut
+        self._rgb = np.empty((self.height, self.width, 3), np.uint8)
+        self._ids = np.empty((self.height, self.width, 3), np.uint8)
+        self._zbuf = np.empty((self.height, self.width), np.float32)
+        extent = model.stat.extent
+        self._near = float(model.vis.map.znear * extent)
+        self._far = float(model.vis.map.zfar * extent)
+        self._pose_gl = np.eye(4)
+
+    def set_pose(self, eye, target) -> None:
+        """Place the camera at ``eye`` looking at ``target`` (world metres, z up)."""
+        pos, rot = look_at_gl(eye, target)
+        fwd = -rot[:, 2]
+        self._cam.lookat[:] = pos + fwd
+        self._cam.distance = 1.0
+        self._cam.azimuth = float(np.degrees(np.arctan2(fwd[1], fwd[0])))
+        self._cam.elevation = float(np.degrees(np.arcsin(np.clip(fwd[2], -1.0, 1.0))))
+        self._pose_gl = np.eye(4)
+        self._pose_gl[:3, :3], self._pose_gl[:3, 3] = rot, pos
+
+    def _update(self, segment: bool) -> None:
+        self.model.vis.global_.fovy = self.fovy_deg
+        mujoco.mjv_updateScene(
+            self.model, self.data, self._opt, self._pert, self._cam, mujoco.mjtCatBit.mjCAT_ALL, self._scene
+        )
+        flags = self._scene.flags
+        if self._fast:
+            flags[mujoco.mjtRndFlag.mjRND_SHADOW] = False
+            flags[mujoco.mjtRndFlag.mjRND_REFLECTION] = False
+        flags[mujoco.mjtRndFlag.mjRND_SEGMENT] = segment
+        flags[mujoco.mjtRndFlag.mjRND_IDCOLOR] = segment
+
+    def render(self) -> RGBDFrame:
+        """Render the current state from the current pose."""
+        self._gl.make_current()
+        self._update(segment=False)
+        mujoco.mjr_render(self._rect, self._scene, self._ctx)
+        mujoco.mjr_readPixels(self._rgb, None, self._rect, self._ctx)
+        self._update(segment=True)
+        mujoco.mjr_render(self._rect, self._scene, self._ctx)
+        mujoco.mjr_readPixels(self._ids, self._zbuf, self._rect, self._ctx)
+        rgb = np.flipud(self._rgb).copy()
+        depth = self._metric_depth(np.flipud(self._zbuf))
+        segmentation = self._segmentation(np.flipud(self._ids))
+        # mjv_updateScene recomputes the camera frame; report exactly what was rendered.
+        cam_to_world = opengl_to_opencv_pose(self._rendered_pose_gl())
+        return RGBDFrame(rgb, depth, segmentation, self.K.copy(), cam_to_world)
+
+    def _rendered_pose_gl(self) -> np.ndarray:
+        # The scene holds a stereo pair offset by half the inter-pupillary distance each;
+        # a mono render is taken from their midpoint.
+        c0, c1 = self._scene.camera[0], self._scene.camera[1]
+        fwd = np.asarray(c0.forward, np.float64)
+        up = np.asarray(c0.up, np.float64)
+        right = np.cross(fwd, up)
+        T = np.eye(4)
+        T[:3, 0], T[:3, 1], T[:3, 2] = right, up, -fwd
+        T[:3, 3] = (np.asarray(c0.pos, np.float64) + np.asarray(c1.pos, np.float64)) / 2
+        return T
+
+    def _metric_depth(self, zbuf: np.ndarray) -> np.ndarray:
+        # Standard [0, 1] perspective depth buffer: z = near * far / (far - d * (far - near)).
+        near, far = self._near, self._far
+        d = zbuf.astype(np.float64)
+        with np.errstate(divide="ignore"):
+            z = near * far / (far - d * (far - near))
+        z[d >= 1.0] = np.inf  # cleared buffer: nothing hit
+        return z.astype(np.float32)
+
+    def _segmentation(self, ids: np.ndarray) -> np.ndarray:
+        seg = ids[..., 0].astype(np.int32) + (ids[..., 1].astype(np.int32) << 8) + (ids[..., 2].astype(np.int32) << 16)
+        ngeom = self._scene.ngeom
+        segid_to_obj = np.full(ngeom + 1, -1, np.int32)
+        for g in self._scene.geoms[:ngeom]:
+            if g.segid >= 0 and g.objtype == mujoco.mjtObj.mjOBJ_GEOM:
+                segid_to_obj[g.segid + 1] = self._geom_object[g.objid]
+        return segid_to_obj[np.clip(seg, 0, ngeom)]
+
+    def close(self) -> None:
+        """Release the GL context."""
+        if self._gl is not None:
+            self._ctx.free()
+            self._gl.free()
+            self._gl = None
+
+    def __del__(self) -> None:  # pragma: no cover - best effort
+        try:
+            self.close()
+        except Exception:
+            pass
