@@ -15,6 +15,7 @@ __all__ = [
     "MapFormatError",
     "MapVersionError",
     "MissingDependencyError",
+    "CheckpointError",
 ]
 
 
@@ -44,3 +45,7 @@ class MapVersionError(MapFormatError):
 
 class MissingDependencyError(ConceptFusionError, ImportError):
     """An optional dependency is not installed; the message names the extra."""
+
+
+class CheckpointError(ConceptFusionError, ValueError):
+    """A model checkpoint is incomplete, corrupt, or not the kind of model expected."""
