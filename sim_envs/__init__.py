@@ -1,1 +1,13 @@
-"""sim_envs."""
+"""Gymnasium environments over simulated scenes (MuJoCo, PyBullet).
+
+Every environment is registered here, once, with a versioned id and a string entry point.
+"""
+
+from gymnasium.envs.registration import register, registry
+
+__all__ = ["ENV_IDS"]
+
+ENV_IDS = ("cf/SceneScan-v0",)
+
+if "cf/SceneScan-v0" not in registry:
+    register(id="cf/SceneScan-v0", entry_point="sim_envs.scene_scan:SceneScanEnv")
