@@ -152,7 +152,8 @@ class MiniLMTextEncoder:
         self.config = config
         with _LOAD_LOCK:
             self._model = _load_minilm(config.device)
-        dim = int(self._model.get_sentence_embedding_dimension())
+        get_dim = getattr(self._model, "get_embedding_dimension", None) or self._model.get_sentence_embedding_dimension
+        dim = int(get_dim())
         if dim != MINILM_DIM:
             raise MissingDependencyError(
                 f"the bundled text model embeds to {dim} dimensions, expected {MINILM_DIM}; "
@@ -169,7 +170,7 @@ class MiniLMTextEncoder:
         return MINILM_DIM
 
     def cache_info(self) -> dict[str, int]:
-        """Cache counters: ``hits``, ``misses``, ``size`` and ``maxsize``."""
+        """Cache counters: ``hits``, ``misses`` (strings the model embedded), ``size`` and ``maxsize``."""
         return {"hits": self._hits, "misses": self._misses, "size": len(self._cache), "maxsize": self.config.cache_size}
 
     def clear_cache(self) -> None:
@@ -210,6 +211,8 @@ class MiniLMTextEncoder:
                 self._hits += 1
                 out[i] = hit
             else:
+                if t in todo:
+                    self._hits += 1  # a repeat within the call rides on the first one
                 todo.setdefault(t, []).append(i)
         if todo:
             self._misses += len(todo)
