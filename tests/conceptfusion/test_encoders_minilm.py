@@ -94,3 +94,16 @@ def test_bad_input_is_refused(tower):
 def test_registry_name_gives_the_text_tower():
     enc = make_encoder("minilm-text")
     assert isinstance(enc, MiniLMTextEncoder) and not hasattr(enc, "encode_image")
+
+
+def test_registry_embedded_pairs_an_image_tower_with_the_text_tower(tmp_path, tower):
+    torch = pytest.importorskip("torch")
+    image_tower = pytest.importorskip("conceptfusion.image_tower")
+    cfg = image_tower.TowerConfig(embed_dim=MINILM_DIM, input_size=16, widths=(4, 4, 4, 4), blocks_per_stage=1)
+    torch.manual_seed(0)
+    image_tower.export_tower_onnx(image_tower.build_tower(cfg), cfg, tmp_path / "tower")
+    enc = make_encoder(f"embedded:{tmp_path / 'tower'}")
+    assert enc.dim == MINILM_DIM
+    img = np.zeros((10, 12, 3), np.uint8)
+    assert enc.encode_image([img]).shape == (1, MINILM_DIM)
+    np.testing.assert_allclose(enc.encode_text(["a red mug"]), tower.encode_text(["a red mug"]), atol=1e-6)
