@@ -14,18 +14,30 @@ each capped at ``max_term``:
   ``convex_weight`` of it, the local convexity cue of RGB-D object segmentation.
 
 A pixel pair with one invalid depth gets the full geometric cost; two invalid pixels
-only the colour cost. Graph-based segmentation (Felzenszwalb and Huttenlocher, 2004) then
-merges regions along the sorted edges, once per scale ``k`` in ``scales``, each scale
-continuing from the previous one. The levels are therefore nested: a box face at a fine
-scale lies inside its box at a coarser one, so proposals overlap as SAM's do.
+only the colour cost. Normals come from one-sided differences on the side of the smaller
+depth change, so pixels next to an occluding edge keep their own surface's normal.
+
+Segmentation has levels. Level 0 is graph-based segmentation (Felzenszwalb and
+Huttenlocher, 2004) at scale ``fine_scale``: faces of objects, patches of texture. Each
+further level merges adjacent regions of the previous one whose boundary edges have a mean
+weight at most the next of ``merge_thresholds`` (a mean over a whole boundary does not
+leak through the few weak edges that pixel-level merging does). The levels are nested: a
+box face at level 0 lies inside its box at a coarser level, so proposals overlap as SAM's
+do (part and object).
 
 Regions are then filtered: too small, too large, mostly invalid depth, near-duplicates of
-a region already proposed (IoU), and **background planes**: a region whose points fit a
-plane (``plane_inlier_fraction`` of them within ``plane_tol_m``) and which covers at least ``background_min_fraction`` of the
-frame or spans at least ``background_min_extent_m`` (floors, walls, table tops). Regions
-lying mostly inside a background plane (its fragments at finer scales, or the plane with
-an object at a coarser one) go too. With ``keep_background_planes=True`` each background
-plane stays as exactly one mask instead, and its fragments still go.
+a region already proposed (IoU at least ``dedupe_iou``), and **background planes**. A
+region is a background plane when its points fit a plane (``plane_inlier_fraction`` of
+them within ``plane_tol_m``) and it covers at least ``background_min_fraction`` of the
+frame or spans at least ``background_min_extent_m``: floors, walls, table tops. A plane's
+crop is most of the frame, so its embedding adds little beyond the global one, while its
+pixels under object masks would dilute them. Every pixel within ``plane_tol_m`` of a
+background plane is background, and regions with at least ``background_overlap`` of
+their pixels there are dropped too (floor patches cut off by the table, the table top
+with an object merged in). With ``keep_background_planes=True`` each background plane is
+instead proposed as exactly one mask (its pixels within tolerance), and the fragments
+still go. Flat things lying within ``plane_tol_m`` of a background plane (a sheet of paper
+on a table) are lost with it.
 
 Output order: by area, largest first; ties by scale, then by first pixel in raster order.
 The result is a pure function of the inputs (no randomness, no threading).
@@ -38,12 +50,10 @@ from dataclasses import dataclass, fields
 
 import cv2
 import numpy as np
-from numba import njit
-from scipy.sparse import coo_matrix
-from scipy.sparse.csgraph import connected_components
 
 from conceptfusion.cameras import backproject
 from conceptfusion.masks import check_frame, empty_masks
+from conceptfusion.masks_regions import felzenszwalb, merge_levels, select_regions
 
 __all__ = ["RGBDProposerConfig", "RGBDProposer"]
 
@@ -161,7 +171,7 @@ class RGBDProposer:
         return masks
 
     def segment(self, rgb_hw3, depth_hw, K_33) -> tuple[np.ndarray, np.ndarray]:
-        """Masks and the segmentation level (index into ``scales``) each came from.
+        """Masks and the segmentation level each came from (0: finest; see the module docstring).
 
         Shape:
             as :meth:`propose` -> ``masks_rhw`` (R, H, W) bool, ``level_r`` (R,) int64.
@@ -180,9 +190,9 @@ class RGBDProposer:
         order = np.argsort(weight, kind="stable")
         k = cfg.fine_scale * (n / _REF_PIXELS)
         min_size = max(1, int(round(cfg.min_area_fraction * n)))
-        fine, count = _felzenszwalb(src[order], dst[order], weight[order], n, k, min_size)
-        labels, counts = _merge_levels(fine, count, src, dst, weight, cfg.merge_thresholds)
-        return _select(labels, counts, vertex.reshape(n, 3), valid.reshape(n), cfg, h, w)
+        fine, count = felzenszwalb(src[order], dst[order], weight[order], n, k, min_size)
+        labels, counts = merge_levels(fine, count, src, dst, weight, cfg.merge_thresholds)
+        return select_regions(labels, counts, vertex.reshape(n, 3), valid.reshape(n), cfg, h, w)
 
 
 def _edges(rgb, depth, vertex, normals, valid, cfg: RGBDProposerConfig):
@@ -273,239 +283,3 @@ def _inverse_depth_jump(inv_hw: np.ndarray, axis: int) -> np.ndarray:
         dev = np.where(np.isnan(prev) & np.isnan(nxt), np.abs(s), dev)
         rel = dev / (0.5 * (x[:, :-1] + x[:, 1:]))
     return rel if axis == 1 else rel.T
-
-
-@njit(cache=True, nogil=True, inline="always")
-def _find(parent, a):
-    root = a
-    while parent[root] != root:
-        root = parent[root]
-    while parent[a] != root:
-        nxt = parent[a]
-        parent[a] = root
-        a = nxt
-    return root
-
-
-@njit(cache=True, nogil=True, inline="always")
-def _union(parent, size, internal, a, b, wgt):
-    if size[a] < size[b] or (size[a] == size[b] and b < a):
-        a, b = b, a
-    parent[b] = a
-    size[a] += size[b]
-    internal[a] = max(internal[a], internal[b], wgt)
-
-
-@njit(cache=True, nogil=True)
-def _felzenszwalb(src, dst, weight, n, k, min_size):
-    """Graph-based segmentation (Felzenszwalb and Huttenlocher, 2004).
-
-    Edges must come sorted by weight. Two regions merge along an edge when its weight is
-    at most ``min(int_a + k/|a|, int_b + k/|b|)`` (``int``: the largest weight merged into
-    the region so far); then regions smaller than ``min_size`` merge into the neighbour
-    across their lightest edge. Labels are numbered by first pixel in raster order.
-
-    Returns ``labels`` (n,) int64 and the number of regions.
-    """
-    parent = np.arange(n)
-    size = np.ones(n, np.int64)
-    internal = np.zeros(n, np.float64)
-    for e in range(src.shape[0]):
-        a = _find(parent, src[e])
-        b = _find(parent, dst[e])
-        if a == b:
-            continue
-        wgt = weight[e]
-        if wgt <= internal[a] + k / size[a] and wgt <= internal[b] + k / size[b]:
-            _union(parent, size, internal, a, b, wgt)
-    for e in range(src.shape[0]):
-        a = _find(parent, src[e])
-        b = _find(parent, dst[e])
-        if a != b and (size[a] < min_size or size[b] < min_size):
-            _union(parent, size, internal, a, b, weight[e])
-    labels = np.empty(n, np.int64)
-    root_id = np.full(n, -1, np.int64)
-    count = 0
-    for p in range(n):
-        r = _find(parent, p)
-        if root_id[r] < 0:
-            root_id[r] = count
-            count += 1
-        labels[p] = root_id[r]
-    return labels, count
-
-
-def _merge_levels(fine, count, src, dst, weight, thresholds):
-    """Coarser levels by merging adjacent regions whose mean boundary weight is low.
-
-    Level 0 is ``fine``. For each threshold, adjacent regions whose boundary edges have a
-    mean weight at most the threshold are joined (connected components of such pairs),
-    repeatedly until no pair qualifies; the result is the next level. Levels are nested.
-    A mean over the whole boundary is robust to the few weak edges that let pixel-level
-    merging leak between objects.
-
-    Shape:
-        ``fine`` (n,) int, edges (E,) -> ``labels`` (L, n) int64, ``counts`` (L,) int64.
-    """
-    cross = fine[src] != fine[dst]
-    bs, bd, bw = src[cross], dst[cross], weight[cross].astype(np.float64)
-    levels, counts = [fine], [count]
-    lab, m = fine, count
-    for t in thresholds:
-        while True:
-            a, b = lab[bs], lab[bd]
-            keep = a != b
-            lo, hi = np.minimum(a, b)[keep], np.maximum(a, b)[keep]
-            if len(lo) == 0:
-                break
-            pairs, inv = np.unique(lo * m + hi, return_inverse=True)
-            mean = np.bincount(inv, weights=bw[keep]) / np.bincount(inv)
-            join = mean <= t
-            if not join.any():
-                break
-            graph = coo_matrix((np.ones(int(join.sum())), (pairs[join] // m, pairs[join] % m)), shape=(m, m))
-            m, comp = connected_components(graph, directed=False)
-            lab = comp.astype(np.int64)[lab]
-        levels.append(lab)
-        counts.append(m)
-    return np.stack(levels), np.asarray(counts, np.int64)
-
-
-def _plane_stats(lab, m, pts, valid, tol):
-    """Per-region area, valid-pixel count, plane inlier fraction and extent (metres).
-
-    A plane is fitted to each region's valid points (least squares from moments), refitted
-    to the points within ``2 tol`` of it, and the inlier fraction is the share of valid
-    points within ``tol`` of the refit. The extent is the full length of a uniform spread
-    with the variance along the region's principal axis.
-
-    Shape:
-        ``lab`` (n,) int, ``pts`` (n, 3), ``valid`` (n,) -> four (m,) float64 arrays.
-    """
-    area = np.bincount(lab, minlength=m).astype(np.float64)
-    p = np.where(valid[:, None], pts, 0.0).astype(np.float64)
-    mom = _moments(lab, m, p, valid)
-    nv = mom[:, 0].copy()
-    mean, normal, eig = _planes_from_moments(mom)
-    extent = np.sqrt(12.0 * eig[:, 2])
-    near = valid & (_plane_distance(lab, p, mean, normal) <= 2.0 * tol)
-    mean, normal, _ = _planes_from_moments(_moments(lab, m, p, near))
-    inlier = valid & (_plane_distance(lab, p, mean, normal) <= tol)
-    inliers = np.bincount(lab, weights=inlier.astype(np.float64), minlength=m)
-    inlier_frac = np.where(nv >= 3, inliers / np.maximum(nv, 1.0), 0.0)
-    return area, nv, inlier_frac, extent
-
-
-@njit(cache=True, nogil=True)
-def _moments(lab, m, p, use):
-    """Per-region count, sums and second-moment sums of the points with ``use`` set.
-
-    Shape:
-        (n,), (n, 3), (n,) -> (m, 10): count, sum x, y, z, sum xx, xy, xz, yy, yz, zz.
-    """
-    out = np.zeros((m, 10))
-    for i in range(lab.shape[0]):
-        if not use[i]:
-            continue
-        r = lab[i]
-        x, y, z = p[i, 0], p[i, 1], p[i, 2]
-        out[r, 0] += 1.0
-        out[r, 1] += x
-        out[r, 2] += y
-        out[r, 3] += z
-        out[r, 4] += x * x
-        out[r, 5] += x * y
-        out[r, 6] += x * z
-        out[r, 7] += y * y
-        out[r, 8] += y * z
-        out[r, 9] += z * z
-    return out
-
-
-@njit(cache=True, nogil=True)
-def _plane_distance(lab, p, mean, normal):
-    """Distance of each point from its region's plane. Shape: (n,) float64."""
-    out = np.empty(lab.shape[0])
-    for i in range(lab.shape[0]):
-        r = lab[i]
-        out[i] = abs(
-            (p[i, 0] - mean[r, 0]) * normal[r, 0] + (p[i, 1] - mean[r, 1]) * normal[r, 1] + (p[i, 2] - mean[r, 2]) * normal[r, 2]
-        )
-    return out
-
-
-def _planes_from_moments(mom):
-    """Least-squares plane per region: centroid (m, 3), unit normal (m, 3), covariance
-    eigenvalues (m, 3) ascending."""
-    cnt = np.maximum(mom[:, 0], 1.0)
-    mean = mom[:, 1:4] / cnt[:, None]
-    sxx, sxy, sxz, syy, syz, szz = (mom[:, 4 + i] / cnt for i in range(6))
-    second = np.stack([sxx, sxy, sxz, sxy, syy, syz, sxz, syz, szz], axis=1).reshape(-1, 3, 3)
-    cov = second - mean[:, :, None] * mean[:, None, :]
-    eig, vec = np.linalg.eigh(cov)
-    return mean, vec[:, :, 0], np.clip(eig, 0.0, None)
-
-
-def _select(labels, counts, pts, valid, cfg: RGBDProposerConfig, h: int, w: int):
-    """Filter the regions of every level and build the masks (see the module docstring)."""
-    n = h * w
-    stats = [_plane_stats(labels[li], int(counts[li]), pts, valid, cfg.plane_tol_m) for li in range(len(counts))]
-    # Background planes first, over all levels: their pixels decide which regions are fragments.
-    background_px = np.zeros(n, bool)
-    planes = []
-    for li, (area, nv, inlier_frac, extent) in enumerate(stats):
-        frac = area / n
-        is_plane = (
-            (nv >= cfg.min_valid_fraction * area)
-            & (inlier_frac >= cfg.plane_inlier_fraction)
-            & ((frac >= cfg.background_min_fraction) | (extent >= cfg.background_min_extent_m))
-            & (frac >= cfg.min_area_fraction)
-        )
-        planes.append(is_plane)
-        if is_plane.any():
-            background_px |= is_plane[labels[li]]
-    kept: list[tuple[int, int]] = []  # (level, label)
-    kept_by_level: list[np.ndarray] = []
-    for li, (area, nv, _, _) in enumerate(stats):
-        m = int(counts[li])
-        lab = labels[li]
-        on_bg = np.bincount(lab, weights=background_px.astype(np.float64), minlength=m) / np.maximum(area, 1.0)
-        ok = (
-            (area >= cfg.min_area_fraction * n)
-            & (area <= cfg.max_area_fraction * n)
-            & (nv >= cfg.min_valid_fraction * area)
-        )
-        ordinary = ok & ~planes[li] & (on_bg < cfg.background_overlap)
-        keep = ordinary | (ok & planes[li] & cfg.keep_background_planes)
-        for lj, kept_j in enumerate(kept_by_level):
-            if kept_j.any() and keep.any():
-                keep &= ~_duplicates(labels[lj], int(counts[lj]), stats[lj][0], kept_j, lab, m, area, cfg.dedupe_iou)
-        kept_by_level.append(keep)
-        kept.extend((li, int(r)) for r in np.flatnonzero(keep))
-    if not kept:
-        return empty_masks(h, w), np.zeros(0, np.int64)
-    areas = np.array([stats[li][0][r] for li, r in kept])
-    order = sorted(range(len(kept)), key=lambda i: (-areas[i], kept[i][0], kept[i][1]))[: cfg.max_masks]
-    masks = np.empty((len(order), h, w), bool)
-    level = np.empty(len(order), np.int64)
-    for out, i in enumerate(order):
-        li, r = kept[i]
-        masks[out] = (labels[li] == r).reshape(h, w)
-        level[out] = li
-    return masks, level
-
-
-def _duplicates(lab_a, m_a, area_a, kept_a, lab_b, m_b, area_b, iou_th):
-    """Regions of level b whose IoU with a kept region of level a is at least ``iou_th``.
-
-    Shape:
-        labels (n,), counts, areas (m_a,), (m_b,), kept (m_a,) bool -> (m_b,) bool.
-    """
-    codes = lab_a.astype(np.int64) * m_b + lab_b
-    pairs, inter = np.unique(codes, return_counts=True)
-    ia, ib = pairs // m_b, pairs % m_b
-    iou = inter / (area_a[ia] + area_b[ib] - inter)
-    hit = kept_a[ia] & (iou >= iou_th)
-    dup = np.zeros(m_b, bool)
-    dup[ib[hit]] = True
-    return dup
