@@ -316,6 +316,54 @@ def test_onnx_corrupt_graph_and_manifest(tmp_path, tiny):
         OnnxClipEncoder(d2)
 
 
+# --- other CLIP-family models with the same API ------------------------------------------
+
+
+_WORDS = ["[PAD]", "[UNK]", "[CLS]", "[SEP]", "<s>", "</s>", "<pad>", "red", "mug", "a", "\u7ea2", "\u676f"]
+
+
+def _word_tokenizer(folder, cls, sep, pad):
+    """A whole-word tokenizer with BERT- or XLM-R-style special tokens, written as tokenizer.json."""
+    from tokenizers import Tokenizer, models, pre_tokenizers, processors
+
+    vocab = {w: i for i, w in enumerate(_WORDS)}
+    tok = Tokenizer(models.WordLevel(vocab, unk_token="[UNK]"))
+    tok.pre_tokenizer = pre_tokenizers.Whitespace()
+    tok.post_processor = processors.TemplateProcessing(
+        single=f"{cls} $A {sep}", special_tokens=[(cls, vocab[cls]), (sep, vocab[sep])]
+    )
+    tok.save(str(folder / "tokenizer.json"))
+    (folder / "tokenizer_config.json").write_text(
+        json.dumps({"tokenizer_class": "PreTrainedTokenizerFast", "pad_token": pad, "unk_token": "[UNK]"})
+    )
+
+
+@pytest.mark.parametrize("family", ["altclip", "chinese_clip"])
+def test_multilingual_families_load_and_export(tmp_path, family):
+    vision = dict(hidden_size=32, intermediate_size=64, num_hidden_layers=2, num_attention_heads=2, image_size=IMAGE, patch_size=8)
+    text = dict(vocab_size=len(_WORDS), hidden_size=32, intermediate_size=64, num_hidden_layers=2, num_attention_heads=2)
+    if family == "altclip":
+        cfg = transformers.AltCLIPConfig(
+            text_config=dict(text, project_dim=PROJ, pad_token_id=6, bos_token_id=4, eos_token_id=5),
+            vision_config=vision, projection_dim=PROJ,
+        )
+        model, special = transformers.AltCLIPModel(cfg), ("<s>", "</s>", "<pad>")
+    else:
+        cfg = transformers.ChineseCLIPConfig(text_config=dict(text, pad_token_id=0), vision_config=vision, projection_dim=PROJ)
+        model, special = transformers.ChineseCLIPModel(cfg), ("[CLS]", "[SEP]", "[PAD]")
+    torch.manual_seed(0)
+    model.eval().save_pretrained(str(tmp_path / "hf"))
+    _word_tokenizer(tmp_path / "hf", *special)
+    hf = HFClipEncoder(tmp_path / "hf")
+    texts = ["a red mug", "\u7ea2 \u676f", "mug"]
+    t = hf.encode_text(texts)
+    assert t.shape == (3, PROJ)
+    np.testing.assert_allclose(hf.encode_text(["mug"]), t[2:], atol=1e-5)  # padding does not leak
+    ox = OnnxClipEncoder(export_clip_to_onnx(tmp_path / "hf", tmp_path / "onnx"))
+    np.testing.assert_allclose(ox.encode_text(texts), t, atol=1e-5)
+    np.testing.assert_allclose(ox.encode_image(_images()), hf.encode_image(_images()), atol=1e-5)
+
+
 # --- the registry, with real checkpoints -------------------------------------------------
 
 
