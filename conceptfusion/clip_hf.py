@@ -27,6 +27,7 @@ from __future__ import annotations
 
 import json
 import logging
+import os
 from dataclasses import dataclass
 from pathlib import Path
 from typing import Sequence
@@ -276,6 +277,8 @@ class HFClipEncoder:
         self.source = ref
         self.config = config
         where = f"{ref} ({'local folder' if local else 'hub id'})"
+        if not local and os.environ.get("HF_HUB_OFFLINE", "").lower() in ("1", "true", "yes", "on"):
+            where += " [downloads are off: HF_HUB_OFFLINE is set, so only the local cache is searched]"
         try:
             model_config = transformers.AutoConfig.from_pretrained(ref, local_files_only=local)
         except Exception as exc:  # transformers raises OSError, ValueError, JSON errors...
