@@ -69,7 +69,7 @@ def check_frame(rgb_hw3, depth_hw, K_33) -> tuple[np.ndarray, np.ndarray, np.nda
     Shape:
         (H, W, 3) uint8, (H, W) float, (3, 3) -> the same, depth float32.
     """
-    rgb = as_array("rgb_hw3", rgb_hw3, shape=(None, None, 3), kinds="u")
+    rgb = as_array("rgb_hw3", rgb_hw3, shape=(None, None, 3), kinds="biuf")
     if rgb.dtype != np.uint8:
         raise DtypeError(f"rgb_hw3: expected uint8 RGB, got {rgb.dtype}")
     depth = as_array("depth_hw", depth_hw, shape=(None, None), kinds="fiu")

@@ -256,7 +256,7 @@ def select_regions(labels, counts, pts, valid, cfg: "RGBDProposerConfig", h: int
     if cfg.keep_background_planes:
         for k, (on, li) in enumerate(zip(plane_masks, plane_levels)):
             area = float(on.sum())
-            if cfg.min_area_fraction * n <= area <= cfg.max_area_fraction * n:
+            if area >= cfg.min_area_fraction * n:  # a kept plane may fill the frame
                 candidates.append((area, li, -1 - k, on, None))
     if not candidates:
         return empty_masks(h, w), np.zeros(0, np.int64)

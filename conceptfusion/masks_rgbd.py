@@ -92,7 +92,8 @@ class RGBDProposerConfig:
     """Smallest region, as a fraction of the frame's pixels; smaller regions are merged
     into a neighbour during segmentation and never proposed."""
     max_area_fraction: float = 0.6
-    """Largest region proposed, as a fraction of the frame's pixels."""
+    """Largest region proposed, as a fraction of the frame's pixels (background planes kept
+    with ``keep_background_planes`` are exempt)."""
     min_valid_fraction: float = 0.5
     """Regions with a smaller fraction of valid depth pixels are dropped."""
     plane_tol_m: float = 0.01

@@ -1,0 +1,211 @@
+"""The default RGB-D mask proposer on exact synthetic box scenes."""
+
+from __future__ import annotations
+
+import numpy as np
+import pytest
+
+from conceptfusion.cameras import backproject, intrinsics_from_fovy, transform_points
+from conceptfusion.encoders import ColorNameEncoder
+from conceptfusion.errors import DtypeError, ShapeError
+from conceptfusion.masks import MaskProposer
+from conceptfusion.masks_rgbd import RGBDProposer, RGBDProposerConfig
+from conceptfusion.pipeline import frame_features
+from conceptfusion.synthetic import Box, look_at, orbit_poses, render_boxes, tabletop_boxes
+
+H, W = 240, 320
+K = intrinsics_from_fovy(60.0, W, H)
+BOXES = tabletop_boxes()
+FLOOR, TABLE = 0, 1
+OBJECTS = range(2, len(BOXES))
+TABLE_TOP_Z = BOXES[TABLE].hi[2]
+POSES = orbit_poses((0.0, 0.0, 0.45), 1.3, 0.8, 3, start_deg=10.0) + orbit_poses(
+    (0.0, 0.0, 0.45), 0.9, 0.5, 2, start_deg=40.0, sweep_deg=180.0
+)
+
+
+@pytest.fixture(scope="module")
+def frames():
+    return [render_boxes(BOXES, K, pose, H, W) for pose in POSES]
+
+
+@pytest.fixture(scope="module")
+def proposer():
+    return RGBDProposer()
+
+
+@pytest.fixture(scope="module")
+def proposals(frames, proposer):
+    return [proposer.segment(f.rgb_hw3, f.depth_hw, f.K_33) for f in frames]
+
+
+def _iou(masks_rhw, truth_hw):
+    inter = (masks_rhw & truth_hw).sum(axis=(1, 2))
+    union = (masks_rhw | truth_hw).sum(axis=(1, 2))
+    return inter / np.maximum(union, 1)
+
+
+def _table_top_and_floor(frame):
+    """Ground-truth pixels of the floor and of the table's top face."""
+    pts = transform_points(frame.cam_to_world_44, backproject(frame.depth_hw, frame.K_33).astype(np.float64))
+    top = (frame.instance_hw == TABLE) & (np.abs(pts[..., 2] - TABLE_TOP_Z) < 1e-3)
+    return frame.instance_hw == FLOOR, top
+
+
+def test_is_a_mask_proposer(proposer):
+    assert isinstance(proposer, MaskProposer)
+    assert proposer.privileged is False
+
+
+def test_every_object_gets_a_proposal_with_iou_at_least_half(frames, proposals):
+    best = []
+    for f, (masks, _) in zip(frames, proposals):
+        assert masks.dtype == bool and masks.shape[1:] == (H, W)
+        for obj in OBJECTS:
+            truth = f.instance_hw == obj
+            if truth.sum() >= 50:
+                best.append(_iou(masks, truth).max() if len(masks) else 0.0)
+    best = np.array(best)
+    assert len(best) >= 25
+    assert best.min() >= 0.5, f"worst best-IoU {best.min():.3f}, mean best-IoU {best.mean():.3f} over {len(best)} objects"
+    assert best.mean() >= 0.85, f"mean best-IoU {best.mean():.3f} over {len(best)} objects"
+
+
+def test_proposals_overlap_across_levels(frames, proposals):
+    """Some object has a part proposal (a face) inside a whole-object proposal."""
+    nested = 0
+    for f, (masks, level) in zip(frames, proposals):
+        assert len(set(level.tolist())) >= 2
+        assert (masks.sum(axis=0) >= 2).any()
+        for obj in OBJECTS:
+            truth = f.instance_hw == obj
+            if not truth.any():
+                continue
+            iou = _iou(masks, truth)
+            inside = (masks & truth).sum(axis=(1, 2)) / np.maximum(masks.sum(axis=(1, 2)), 1)
+            whole = np.flatnonzero(iou >= 0.8)
+            parts = np.flatnonzero((inside >= 0.9) & (iou < 0.8))
+            if any((masks[p] & ~masks[o]).sum() <= 0.05 * masks[p].sum() for o in whole for p in parts):
+                nested += 1
+    assert nested >= 5, f"only {nested} objects have a part proposal nested in a whole-object proposal"
+
+
+def test_floor_and_table_top_are_filtered_by_default(frames, proposals):
+    for f, (masks, _) in zip(frames, proposals):
+        floor, top = _table_top_and_floor(f)
+        background = floor | top
+        share = (masks & background).sum(axis=(1, 2)) / masks.sum(axis=(1, 2))
+        assert share.max() < 0.5, f"a proposal lies {share.max():.2f} on the floor or the table top"
+
+
+def test_background_planes_kept_as_one_mask_each_when_asked(frames):
+    proposer = RGBDProposer(keep_background_planes=True)
+    f = frames[0]
+    masks = proposer.propose(f.rgb_hw3, f.depth_hw, f.K_33)
+    floor, top = _table_top_and_floor(f)
+    assert (_iou(masks, floor) >= 0.95).sum() == 1
+    assert (_iou(masks, top) >= 0.95).sum() == 1
+    # fragments of either plane are still dropped
+    share = (masks & (floor | top)).sum(axis=(1, 2)) / masks.sum(axis=(1, 2))
+    assert ((share >= 0.5) & (_iou(masks, floor) < 0.95) & (_iou(masks, top) < 0.95)).sum() == 0
+
+
+def test_plane_alone_gives_no_mask_and_box_on_plane_gives_the_box():
+    floor = Box("floor", (0.0, 0.0, -0.05), (6.0, 6.0, 0.1), (150, 150, 150))
+    cube = Box("cube", (0.0, 0.0, 0.1), (0.2, 0.2, 0.2), (200, 30, 30))
+    pose = look_at((0.9, -0.6, 0.8), (0.0, 0.0, 0.1))
+    proposer = RGBDProposer()
+    empty = render_boxes([floor], K, pose, H, W)
+    assert proposer.propose(empty.rgb_hw3, empty.depth_hw, K).shape == (0, H, W)
+    assert RGBDProposer(keep_background_planes=True).propose(empty.rgb_hw3, empty.depth_hw, K).shape == (1, H, W)
+    scene = render_boxes([floor, cube], K, pose, H, W)
+    masks = proposer.propose(scene.rgb_hw3, scene.depth_hw, K)
+    assert _iou(masks, scene.instance_hw == 1).max() >= 0.9
+
+
+def test_nan_depth_is_invalid_and_handled(frames, proposer):
+    f = frames[0]
+    depth = f.depth_hw.copy()
+    depth[:, : W // 3] = np.nan
+    depth[0, -1] = -1.0
+    masks = proposer.propose(f.rgb_hw3, depth, f.K_33)
+    valid = np.isfinite(depth) & (depth > 0)
+    share_valid = (masks & valid).sum(axis=(1, 2)) / masks.sum(axis=(1, 2))
+    assert share_valid.min() >= proposer.config.min_valid_fraction
+    seen = [obj for obj in OBJECTS if (f.instance_hw[:, W // 3 + 5:] == obj).sum() >= 100
+            and not (f.instance_hw[:, : W // 3 + 5] == obj).any()]
+    assert seen
+    for obj in seen:
+        assert _iou(masks, f.instance_hw == obj).max() >= 0.5
+    nothing = np.full((H, W), np.nan, np.float32)
+    assert proposer.propose(f.rgb_hw3, nothing, f.K_33).shape == (0, H, W)
+
+
+def test_deterministic(frames, proposer, proposals):
+    f = frames[1]
+    again, level = RGBDProposer().segment(f.rgb_hw3, f.depth_hw.astype(np.float64), f.K_33)
+    np.testing.assert_array_equal(again, proposals[1][0])
+    np.testing.assert_array_equal(level, proposals[1][1])
+
+
+def test_output_sorted_by_area_and_capped(frames):
+    f = frames[0]
+    masks = RGBDProposer(max_masks=3).propose(f.rgb_hw3, f.depth_hw, f.K_33)
+    assert len(masks) == 3
+    areas = masks.sum(axis=(1, 2))
+    assert np.all(np.diff(areas) <= 0)
+
+
+def test_masks_feed_the_feature_pipeline(frames, proposals):
+    f = frames[0]
+    enc = ColorNameEncoder()
+    feats = frame_features(f.rgb_hw3, proposals[0][0], enc)
+    dense = feats.dense()
+    red = dense[f.instance_hw == 2].mean(axis=0)
+    names = ["red", "green", "blue", "yellow", "purple", "orange", "brown", "gray"]
+    sims = enc.encode_text(names) @ red
+    assert names[int(np.argmax(sims))] == "red"
+
+
+@pytest.mark.parametrize(
+    "rgb, depth, k, err, match",
+    [
+        (np.zeros((H, W, 3), np.float32), np.ones((H, W), np.float32), K, DtypeError, "uint8"),
+        (np.zeros((H, W), np.uint8), np.ones((H, W), np.float32), K, ShapeError, r"rgb_hw3: expected shape \(\*, \*, 3\)"),
+        (np.zeros((H, W, 3), np.uint8), np.ones((H, W), np.uint16), K, DtypeError, "millimetres"),
+        (np.zeros((H, W, 3), np.uint8), np.ones((H, W + 1), np.float32), K, ShapeError, "image's size"),
+        (np.zeros((H, W, 3), np.uint8), np.ones((H, W), np.float32), np.eye(2), ShapeError, "K_33"),
+        (np.zeros((H, W, 3), np.uint8), np.ones((H, W), np.float32), -K, ValueError, "fx, fy > 0"),
+        (np.zeros((2, 2, 3), np.uint8), np.ones((2, 2), np.float32), K, ShapeError, "at least 3x3"),
+        ("image", np.ones((H, W), np.float32), K, DtypeError, "numpy array"),
+    ],
+)
+def test_bad_inputs(proposer, rgb, depth, k, err, match):
+    with pytest.raises(err, match=match):
+        proposer.propose(rgb, depth, k)
+
+
+@pytest.mark.parametrize(
+    "kwargs, match",
+    [
+        ({"merge_thresholds": (4.0, 2.0)}, "ascending"),
+        ({"merge_thresholds": (0.0,)}, "positive"),
+        ({"fine_scale": 0.0}, "fine_scale"),
+        ({"min_area_fraction": 0.7, "max_area_fraction": 0.6}, "min <= max"),
+        ({"dedupe_iou": 1.5}, "dedupe_iou: expected a fraction"),
+        ({"normal_tol_deg": 200.0}, "normal_tol_deg"),
+        ({"max_masks": 0}, "max_masks"),
+    ],
+)
+def test_bad_config(kwargs, match):
+    with pytest.raises(ValueError, match=match):
+        RGBDProposerConfig(**kwargs)
+
+
+def test_config_overrides_and_type_checks():
+    p = RGBDProposer(RGBDProposerConfig(max_masks=5), dedupe_iou=0.8)
+    assert (p.config.max_masks, p.config.dedupe_iou) == (5, 0.8)
+    with pytest.raises(TypeError, match="RGBDProposerConfig"):
+        RGBDProposer({"max_masks": 5})
+    with pytest.raises(TypeError):
+        RGBDProposer(no_such_setting=1)
