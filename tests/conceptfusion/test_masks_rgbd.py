@@ -141,6 +141,19 @@ def test_nan_depth_is_invalid_and_handled(frames, proposer):
     assert proposer.propose(f.rgb_hw3, nothing, f.K_33).shape == (0, H, W)
 
 
+def test_noisy_sensor_depth_with_median_filter(frames):
+    """0.5% multiplicative depth noise and RGB noise, as a depth camera gives; median on."""
+    rng = np.random.default_rng(0)
+    proposer = RGBDProposer(depth_median_px=5)
+    best = []
+    for f in frames[:3]:
+        depth = (f.depth_hw * (1.0 + 0.005 * rng.standard_normal(f.depth_hw.shape))).astype(np.float32)
+        rgb = np.clip(f.rgb_hw3 + rng.normal(0.0, 3.0, f.rgb_hw3.shape), 0, 255).astype(np.uint8)
+        masks = proposer.propose(rgb, depth, f.K_33)
+        best += [_iou(masks, f.instance_hw == obj).max() for obj in OBJECTS if (f.instance_hw == obj).sum() >= 100]
+    assert np.mean(best) >= 0.75, f"mean best-IoU {np.mean(best):.3f} on noisy depth"
+
+
 def test_deterministic(frames, proposer, proposals):
     f = frames[1]
     again, level = RGBDProposer().segment(f.rgb_hw3, f.depth_hw.astype(np.float64), f.K_33)
@@ -195,6 +208,7 @@ def test_bad_inputs(proposer, rgb, depth, k, err, match):
         ({"dedupe_iou": 1.5}, "dedupe_iou: expected a fraction"),
         ({"normal_tol_deg": 200.0}, "normal_tol_deg"),
         ({"max_masks": 0}, "max_masks"),
+        ({"depth_median_px": 7}, "depth_median_px"),
     ],
 )
 def test_bad_config(kwargs, match):
