@@ -54,7 +54,9 @@ def felzenszwalb(src, dst, weight, n, k, min_size):
     the region so far); then regions smaller than ``min_size`` merge into the neighbour
     across their lightest edge. Labels are numbered by first pixel in raster order.
 
-    Returns ``labels`` (n,) int64 and the number of regions.
+    Shape:
+        ``src``, ``dst`` (E,) int pixel indices, ``weight`` (E,) sorted ascending ->
+        ``labels`` (n,) int64 and the number of regions.
     """
     parent = np.arange(n)
     size = np.ones(n, np.int64)
@@ -212,7 +214,13 @@ def _planes_from_moments(mom):
 
 
 def select_regions(labels, counts, pts, valid, cfg: "RGBDProposerConfig", h: int, w: int):
-    """Filter the regions of every level and build the masks (see the module docstring)."""
+    """Filter the regions of every level and build the masks (the rules are described in
+    :mod:`conceptfusion.masks_rgbd`).
+
+    Shape:
+        ``labels`` (L, n) int, ``counts`` (L,), ``pts`` (n, 3) camera-frame points,
+        ``valid`` (n,) bool -> ``masks_rhw`` (R, h, w) bool, ``level_r`` (R,) int64.
+    """
     n = h * w
     p = np.where(valid[:, None], pts, 0.0).astype(np.float64)
     stats = [_plane_stats(labels[li], int(counts[li]), p, valid, cfg.plane_tol_m) for li in range(len(counts))]
