@@ -4,15 +4,23 @@ Every asset is a function from a size and a material name to MJCF geom elements 
 object's body frame (z up, resting on z = 0), plus a category and default descriptive
 phrases. Colours come from textured materials (MuJoCo builtin checker and gradient
 textures), so surfaces are not flat colours.
+
+``MESH_ASSETS`` adds object kinds made from the meshes that ship with ``pybullet_data``
+(:mod:`sim_envs.mesh_assets`); their geoms refer to mesh assets that a MuJoCo scene declares
+with ``mesh_asset_xml``. ``ALL_ASSETS`` holds both; ``ASSETS`` stays the procedural kinds, which
+is what the scene generator draws from.
 """
 
 from __future__ import annotations
 
 import math
 from dataclasses import dataclass
+from functools import partial
 from typing import Callable
 
-__all__ = ["Asset", "ASSETS", "COLORS", "material_xml"]
+from sim_envs.mesh_assets import MESH_KINDS, mesh_geoms
+
+__all__ = ["Asset", "ASSETS", "MESH_ASSETS", "ALL_ASSETS", "COLORS", "material_xml", "get_asset"]
 
 COLORS: dict[str, tuple[float, float, float]] = {
     "red": (0.80, 0.12, 0.12),
@@ -53,6 +61,8 @@ class Asset:
     """Bounding box (x, y, z) in metres."""
     geoms: Callable[[tuple[float, float, float], str], str]
     """(size, material) -> MJCF geom elements in the body frame."""
+    mesh: str | None = None
+    """Key of :data:`sim_envs.mesh_assets.MESH_KINDS` for mesh kinds; None for primitives."""
 
 
 def _box(size, mat):
@@ -116,3 +126,22 @@ ASSETS: dict[str, Asset] = {
     "ball": Asset("ball", ("a ball", "a toy to play with"), (0.09, 0.09, 0.09), _ball),
 }
 """Built-in procedural assets by name."""
+
+MESH_ASSETS: dict[str, Asset] = {
+    name: Asset(k.category, k.phrases, k.default_size, partial(mesh_geoms, name), mesh=name)
+    for name, k in MESH_KINDS.items()
+}
+"""Mesh object kinds from ``pybullet_data`` by name (see :mod:`sim_envs.mesh_assets`)."""
+
+ALL_ASSETS: dict[str, Asset] = {**ASSETS, **MESH_ASSETS}
+"""Every object kind a scene may use: procedural and mesh."""
+
+
+def get_asset(name: str) -> Asset:
+    """The asset called ``name`` (procedural or mesh); ``KeyError`` naming the nearest names."""
+    if name in ALL_ASSETS:
+        return ALL_ASSETS[name]
+    import difflib
+
+    near = difflib.get_close_matches(name, ALL_ASSETS, n=3)
+    raise KeyError(f"unknown asset {name!r}" + (f"; did you mean {near}?" if near else f"; known: {sorted(ALL_ASSETS)}"))

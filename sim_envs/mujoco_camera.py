@@ -115,6 +115,7 @@ class MujocoRGBDCamera:
         self._near = float(model.vis.map.znear * extent)
         self._far = float(model.vis.map.zfar * extent)
         self._pose_gl = np.eye(4)
+        self._segid_lut: np.ndarray | None = None  # scene geom index + 1 -> object index
 
     def set_pose(self, eye, target) -> None:
         """Place the camera at ``eye`` looking at ``target`` (world metres, z up)."""
@@ -177,21 +178,29 @@ class MujocoRGBDCamera:
 
     def _metric_depth(self, zbuf: np.ndarray) -> np.ndarray:
         # Standard [0, 1] perspective depth buffer: z = near * far / (far - d * (far - near)).
+        # float32 keeps sub-millimetre precision at table-top range (relative error ~1e-7 * far/near).
         near, far = self._near, self._far
-        d = zbuf.astype(np.float64)
         with np.errstate(divide="ignore"):
-            z = near * far / (far - d * (far - near))
-        z[d >= 1.0] = np.inf  # cleared buffer: nothing hit
-        return z.astype(np.float32)
+            z = np.float32(near * far) / (np.float32(far) - zbuf * np.float32(far - near))
+        z[zbuf >= 1.0] = np.inf  # cleared buffer: nothing hit
+        return z
 
     def _segmentation(self, ids: np.ndarray) -> np.ndarray:
-        seg = ids[..., 0].astype(np.int32) + (ids[..., 1].astype(np.int32) << 8) + (ids[..., 2].astype(np.int32) << 16)
+        seg = ids[..., 0].astype(np.int32)
+        seg |= ids[..., 1].astype(np.int32) << 8
+        seg |= ids[..., 2].astype(np.int32) << 16
         ngeom = self._scene.ngeom
-        segid_to_obj = np.full(ngeom + 1, -1, np.int32)
-        for g in self._scene.geoms[:ngeom]:
-            if g.segid >= 0 and g.objtype == mujoco.mjtObj.mjOBJ_GEOM:
-                segid_to_obj[g.segid + 1] = self._geom_object[g.objid]
-        return segid_to_obj[np.clip(seg, 0, ngeom)]
+        lut = self._segid_lut
+        # The scene lists visible model geoms in model order; the list only changes when the
+        # model's visual options do, so the lookup table is rebuilt when its length changes.
+        if lut is None or len(lut) != ngeom + 1:
+            lut = np.full(ngeom + 1, -1, np.int32)
+            for g in self._scene.geoms[:ngeom]:
+                if g.segid >= 0 and g.objtype == mujoco.mjtObj.mjOBJ_GEOM:
+                    lut[g.segid + 1] = self._geom_object[g.objid]
+            self._segid_lut = lut
+        np.clip(seg, 0, ngeom, out=seg)
+        return lut[seg]
 
     def close(self) -> None:
         """Release the GL context."""

@@ -10,10 +10,12 @@ from sim_envs import headless  # noqa: F401
 
 import mujoco  # noqa: E402
 
-from sim_envs.assets import ASSETS, COLORS, material_xml  # noqa: E402
+from sim_envs.assets import ALL_ASSETS, COLORS, MESH_ASSETS, material_xml  # noqa: E402
+from sim_envs.mesh_assets import mesh_asset_xml  # noqa: E402
+from sim_envs.mujoco_household import household_assets_xml, household_body_xml  # noqa: E402
 from sim_envs.scene_format import Scene  # noqa: E402
 
-__all__ = ["MujocoScene", "build_mjcf", "build_mujoco"]
+__all__ = ["MujocoScene", "build_mjcf", "build_mujoco", "split_labels"]
 
 
 @dataclass
@@ -21,7 +23,11 @@ class MujocoScene:
     """A scene loaded in MuJoCo.
 
     ``geom_object[g]`` is the index into ``scene.objects`` of geom ``g`` (-1 for the room,
-    table and line); ``object_body[i]`` the body id of object ``i``.
+    table, line, walls, floors and furniture); ``object_body[i]`` the body id of object ``i``;
+    ``geom_furniture[g]`` the index into ``scene.furniture`` of geom ``g`` (-1 elsewhere).
+
+    Shape:
+        ``geom_object``, ``geom_furniture`` (ngeom,) int32; ``object_body`` (num_objects,) int32.
     """
 
     scene: Scene
@@ -29,10 +35,38 @@ class MujocoScene:
     data: mujoco.MjData
     geom_object: np.ndarray
     object_body: np.ndarray
+    geom_furniture: np.ndarray | None = None
+
+    def __post_init__(self) -> None:
+        if self.geom_furniture is None:
+            self.geom_furniture = np.full(self.model.ngeom, -1, np.int32)
+
+    def geom_labels(self) -> np.ndarray:
+        """One label per geom for a single segmentation pass: object ``i`` -> ``i``, furniture
+        ``j`` -> ``num_objects + j``, anything else -1; undo with :func:`split_labels`.
+
+        Shape:
+            returns (ngeom,) int32.
+        """
+        n = len(self.scene.objects)
+        return np.where(self.geom_object >= 0, self.geom_object, np.where(self.geom_furniture >= 0, self.geom_furniture + n, -1)).astype(np.int32)
+
+
+def split_labels(labels_hw: np.ndarray, num_objects: int) -> tuple[np.ndarray, np.ndarray]:
+    """Object and furniture index images from a segmentation of :meth:`MujocoScene.geom_labels`.
+
+    Shape:
+        ``labels_hw`` (H, W) int; returns two (H, W) int32 images, -1 where none.
+    """
+    labels_hw = np.asarray(labels_hw)
+    objects = np.where((labels_hw >= 0) & (labels_hw < num_objects), labels_hw, -1).astype(np.int32)
+    furniture = np.where(labels_hw >= num_objects, labels_hw - num_objects, -1).astype(np.int32)
+    return objects, furniture
 
 
 def build_mjcf(scene: Scene) -> str:
-    """MJCF text of a scene: textured floor, table, dividing line, one free body per object.
+    """MJCF text of a scene: one free body per object, and either the tabletop (textured floor,
+    table, dividing line) or the household (room floors, walls, static furniture bodies).
 
     Rendering quality is set for speed on a software rasteriser: no multisampling, coarse
     tessellation of round primitives (12 slices, 6 stacks), no shadows.
@@ -44,9 +78,16 @@ def build_mjcf(scene: Scene) -> str:
     ]
     for c, rgb in sorted(COLORS.items()):
         mats.append(material_xml(f"paint_{c}", rgb))
+    meshes = [(o.asset, o.size) for o in scene.objects if o.asset in MESH_ASSETS]
+    if meshes:
+        mats.append(mesh_asset_xml(meshes))
     # Shadow maps dominate software rendering (10x); lights cast none.
-    body = ['<light pos="0 0 3" dir="0 0 -1" diffuse="0.8 0.8 0.8" castshadow="false"/>', '<light pos="2 -2 3" dir="-1 1 -1.5" diffuse="0.4 0.4 0.4" castshadow="false"/>']
-    body.append('<geom name="floor" type="plane" size="5 5 0.1" material="floor"/>')
+    if scene.is_household:
+        mats.append(household_assets_xml())
+        body = [household_body_xml(scene)]
+    else:
+        body = ['<light pos="0 0 3" dir="0 0 -1" diffuse="0.8 0.8 0.8" castshadow="false"/>', '<light pos="2 -2 3" dir="-1 1 -1.5" diffuse="0.4 0.4 0.4" castshadow="false"/>']
+        body.append('<geom name="floor" type="plane" size="5 5 0.1" material="floor"/>')
     if scene.table is not None:
         t = scene.table
         cx, cy, cz = t.center
@@ -65,7 +106,7 @@ def build_mjcf(scene: Scene) -> str:
                 f'size="0.008 {abs(y1 - y0) / 2} 0.0005" material="line" contype="0" conaffinity="0"/>'
             )
     for o in scene.objects:
-        geoms = ASSETS[o.asset].geoms(o.size, f"paint_{o.color}")
+        geoms = ALL_ASSETS[o.asset].geoms(o.size, f"paint_{o.color}")
         x, y, z = o.position
         body.append(
             f'<body name="{o.id}" pos="{x} {y} {z + 0.001}" euler="0 0 {o.yaw}"><freejoint name="{o.id}_joint"/>'
@@ -90,4 +131,7 @@ def build_mujoco(scene: Scene) -> MujocoScene:
         body_object[b] = i
         object_body[i] = b
     geom_object = body_object[model.geom_bodyid]
-    return MujocoScene(scene, model, data, geom_object, object_body)
+    body_furniture = np.full(model.nbody, -1, np.int32)
+    for j, f in enumerate(scene.furniture):
+        body_furniture[mujoco.mj_name2id(model, mujoco.mjtObj.mjOBJ_BODY, f.id)] = j
+    return MujocoScene(scene, model, data, geom_object, object_body, body_furniture[model.geom_bodyid])

@@ -7,7 +7,9 @@ from __future__ import annotations
 
 import numpy as np
 
-__all__ = ["object_aabbs", "scene_graph"]
+__all__ = ["object_aabbs", "furniture_aabbs", "scene_graph"]
+
+_SIGNS = np.array([[sx, sy, sz] for sx in (-1, 1) for sy in (-1, 1) for sz in (-1, 1)], np.float64)
 
 
 def object_aabbs(sim) -> np.ndarray:
@@ -16,11 +18,24 @@ def object_aabbs(sim) -> np.ndarray:
     Shape:
         returns (num_objects, 2, 3): ``[i, 0]`` lower corner, ``[i, 1]`` upper corner.
     """
+    return _group_aabbs(sim, sim.geom_object, len(sim.scene.objects))
+
+
+def furniture_aabbs(sim) -> np.ndarray:
+    """World axis-aligned box of every piece of furniture (household scenes).
+
+    Shape:
+        returns (num_furniture, 2, 3): ``[j, 0]`` lower corner, ``[j, 1]`` upper corner.
+    """
+    return _group_aabbs(sim, sim.geom_furniture, len(sim.scene.furniture))
+
+
+def _group_aabbs(sim, geom_group: np.ndarray, n: int) -> np.ndarray:
     model, data = sim.model, sim.data
-    signs = np.array([[sx, sy, sz] for sx in (-1, 1) for sy in (-1, 1) for sz in (-1, 1)], np.float64)
-    out = np.empty((len(sim.scene.objects), 2, 3))
-    for i in range(len(sim.scene.objects)):
-        geoms = np.flatnonzero(sim.geom_object == i)
+    signs = _SIGNS
+    out = np.empty((n, 2, 3))
+    for i in range(n):
+        geoms = np.flatnonzero(geom_group == i)
         corners = []
         for g in geoms:
             centre, half = model.geom_aabb[g, :3], model.geom_aabb[g, 3:]
@@ -57,4 +72,51 @@ def scene_graph(sim, *, contact_tol: float = 0.01, inside_tol: float = 0.01) -> 
                 support.append((o.id, p.id))
             if np.all(lo[:2] >= plo[:2] - inside_tol) and np.all(hi[:2] <= phi[:2] + inside_tol) and lo[2] >= plo[2] - inside_tol and (hi[:2] - lo[:2] < phi[:2] - plo[:2]).all():
                 inside.append((o.id, p.id))
-    return {"objects": objects, "supported_by": support, "inside": inside}
+    graph = {"objects": objects, "supported_by": support, "inside": inside}
+    if scene.is_household:
+        _household_relations(sim, boxes, graph, contact_tol)
+    return graph
+
+
+def _household_relations(sim, boxes: np.ndarray, graph: dict, contact_tol: float) -> None:
+    """Add rooms, furniture boxes, each object's room, and support / containment by furniture
+    surfaces and the floor (computed from the current state, not from the scene file)."""
+    from sim_envs.furniture import FURNITURE
+
+    scene = sim.scene
+    fboxes = furniture_aabbs(sim)
+    graph["rooms"] = [{"id": r.id, "name": r.name, "floor": [list(r.floor[0]), list(r.floor[1])]} for r in scene.rooms]
+    graph["furniture"] = []
+    for j, f in enumerate(scene.furniture):
+        room = scene.room_at(f.position[:2])
+        graph["furniture"].append(
+            {"id": f.id, "name": f.name, "category": f.category, "room": room.id if room else None, "aabb": [fboxes[j, 0].tolist(), fboxes[j, 1].tolist()]}
+        )
+    on_object = {a for a, _ in graph["supported_by"]}
+    index = {o.id: i for i, o in enumerate(scene.objects)}
+    in_object = {a: b for a, b in graph["inside"]}
+    for i, o in enumerate(scene.objects):
+        lo, hi = boxes[i]
+        centre = (lo[:2] + hi[:2]) / 2
+        room = scene.room_at(centre)
+        graph["objects"][i]["room"] = room.id if room else None
+        if o.id in on_object:
+            continue
+        container = in_object.get(o.id)
+        if container is not None and lo[2] - boxes[index[container], 0, 2] <= 0.03:  # resting on a container's inner floor
+            graph["supported_by"].append((o.id, container))
+            continue
+        found = False
+        for f in scene.furniture:
+            local = f.to_local(centre)
+            for srf in f.surfaces():
+                if srf.contains(local) and abs(lo[2] - (f.position[2] + srf.z)) <= contact_tol:
+                    graph["supported_by"].append((o.id, f.id))
+                    if srf.kind == "inside" and FURNITURE[f.category].container:
+                        graph["inside"].append((o.id, f.id))
+                    found = True
+                    break
+            if found:
+                break
+        if not found and abs(lo[2]) <= contact_tol and room is not None:
+            graph["supported_by"].append((o.id, "floor"))

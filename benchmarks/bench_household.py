@@ -1,0 +1,73 @@
+"""Household scene benchmarks: reset time (generation + MuJoCo build + camera) and render speed.
+
+    python benchmarks/bench_household.py
+
+Targets (2-core CPU, software rasteriser): reset < 2 s; RGB-D + segmentation at 320x240 in a
+room sweep as fast as the tabletop scenes (bench_render.py).
+"""
+
+from __future__ import annotations
+
+import statistics
+import time
+
+from sim_envs.mujoco_camera import MujocoRGBDCamera
+from sim_envs.mujoco_scene import build_mujoco
+from sim_envs.scene_gen_household import generate_household
+from sim_envs.scene_scan import SceneScanEnv, room_sweep_trajectory
+
+
+def bench_reset(n: int = 10) -> None:
+    gen, build, total = [], [], []
+    for seed in range(n):
+        t0 = time.perf_counter()
+        scene = generate_household(seed)
+        t1 = time.perf_counter()
+        sim = build_mujoco(scene)
+        cam = MujocoRGBDCamera(sim.model, sim.data, 320, 240, geom_object=sim.geom_labels())
+        t2 = time.perf_counter()
+        cam.close()
+        gen.append(t1 - t0)
+        build.append(t2 - t1)
+        total.append(t2 - t0)
+    print(
+        f"household reset (generate + build + camera), {n} seeds: median {1000 * statistics.median(total):.0f} ms, "
+        f"max {1000 * max(total):.0f} ms (generate median {1000 * statistics.median(gen):.0f} ms, "
+        f"build + camera median {1000 * statistics.median(build):.0f} ms)"
+    )
+
+
+def bench_env_reset(n: int = 5) -> None:
+    env = SceneScanEnv(kind="household", num_frames=24)
+    times = []
+    for seed in range(n):
+        t0 = time.perf_counter()
+        env.reset(seed=seed)
+        times.append(time.perf_counter() - t0)
+    env.close()
+    print(f"SceneScan(kind='household').reset incl. first frame and scene graph: median {1000 * statistics.median(times):.0f} ms, max {1000 * max(times):.0f} ms")
+
+
+def bench_render(width: int, height: int, frames: int = 60, segmentation: bool = True) -> None:
+    scene = generate_household(0)
+    sim = build_mujoco(scene)
+    cam = MujocoRGBDCamera(sim.model, sim.data, width, height, geom_object=sim.geom_labels())
+    poses = room_sweep_trajectory(scene, frames)
+    cam.set_pose(*poses[0])
+    cam.render(segmentation=segmentation)
+    t0 = time.perf_counter()
+    for eye, target in poses:
+        cam.set_pose(eye, target)
+        cam.render(segmentation=segmentation)
+    dt = time.perf_counter() - t0
+    what = "RGB-D + segmentation" if segmentation else "RGB-D"
+    print(f"household {what} {width}x{height}: {frames / dt:.0f} frames/s ({1000 * dt / frames:.1f} ms/frame)")
+    cam.close()
+
+
+if __name__ == "__main__":
+    bench_reset()
+    bench_env_reset()
+    bench_render(320, 240)
+    bench_render(320, 240, segmentation=False)
+    bench_render(640, 480)

@@ -1,0 +1,345 @@
+"""The PyBullet tabletop backend: a scene plus a Franka Panda that executes push primitives.
+
+The Panda (``franka_panda/panda.urdf`` from ``pybullet_data``) stands on a pedestal at the
+centre of the table's -y edge, facing +y, fingers closed. It reaches most of the table, but not
+the far corners nor the table right in front of its base: :meth:`PyBulletTabletop.can_reach`
+tells. The hand turns so that its narrow side leads the push; above about 4.5 cm over the
+fingertip the hand itself is part of the pusher. A push is planned before anything
+moves: inverse kinematics with the hand pointing down is solved, in a second kinematics-only
+client, for every waypoint (above the start, the start at ``PUSH_HEIGHT``, points every 2 cm
+along the push, above the end); if any waypoint is missed by more than ``reach_tol`` the push
+is refused with a reason and the scene is untouched. Executing tracks the fingertip through
+the waypoints with joint position control while physics steps (transit above the objects, a
+vertical descent, the push at ``push_speed``, a vertical lift, a retract to the home pose),
+then steps until the objects are at rest (or ``settle_steps`` have passed).
+
+Deterministic: the same scene, seed and pushes give the same final poses.
+"""
+
+from __future__ import annotations
+
+import math
+
+import numpy as np
+
+from sim_envs.mujoco_camera import RGBDFrame
+from sim_envs.pybullet_camera import RENDERERS, PyBulletRGBDCamera, forget_client, load_egl_plugin
+from sim_envs.pybullet_scene import build_pybullet
+from sim_envs.scene_format import Scene
+from sim_envs.tabletop_sim import PUSH_HEIGHT, PushOutcome
+
+__all__ = ["PyBulletTabletop", "PANDA_URDF", "HOME_JOINTS"]
+
+PANDA_URDF = "franka_panda/panda.urdf"
+"""The arm, inside ``pybullet_data``."""
+
+HOME_JOINTS = (0.0, -1.0, 0.0, -2.6, 0.0, 1.75, math.pi / 4)
+"""Arm joint angles of the home pose: hand raised above the table edge, out of the way."""
+
+_ARM = tuple(range(7))
+_FINGERS = (9, 10)
+_TIP_LINK = 11  # panda_grasptarget
+_FORCES = (87.0,) * 4 + (12.0,) * 3
+_BASE_YAW = math.pi / 2  # the arm faces +y
+_CONTROL_STEPS = 4  # physics steps per control waypoint
+_IK_SEEDS = (  # tried in turn when the current configuration does not lead to a solution
+    HOME_JOINTS,
+    (0.0, 0.3, 0.0, -2.2, 0.0, 2.5, math.pi / 4),
+    (0.0, -0.3, 0.0, -2.9, 0.0, 2.6, math.pi / 4),
+    (0.0, 0.6, 0.0, -1.2, 0.0, 1.8, math.pi / 4),
+)
+
+
+class PyBulletTabletop:
+    """A :class:`~sim_envs.tabletop_sim.TabletopSim` in PyBullet with a Franka Panda pusher.
+
+    Args:
+        scene: the tabletop scene (must have a table).
+        seed: recorded for reproducibility; the simulation itself draws no random numbers.
+        renderer: "auto", "tiny" or "egl" (see :class:`~sim_envs.pybullet_camera.PyBulletRGBDCamera`).
+        time_step: physics step in seconds.
+        push_speed: fingertip speed while pushing (m/s); transit moves go at three times this.
+        reach_tol: largest inverse-kinematics position error (m) a waypoint may have.
+        settle_steps: cap on physics steps spent letting objects come to rest after a push.
+    """
+
+    def __init__(
+        self,
+        scene: Scene,
+        seed: int = 0,
+        *,
+        renderer: str = "auto",
+        time_step: float = 1.0 / 240.0,
+        push_speed: float = 0.15,
+        reach_tol: float = 0.01,
+        settle_steps: int = 480,
+    ) -> None:
+        import pybullet as p
+        import pybullet_data
+
+        if scene.table is None:
+            raise ValueError(f"scene {scene.id!r}: expected a tabletop scene with a table, got table=None")
+        if push_speed <= 0 or reach_tol <= 0 or time_step <= 0:
+            raise ValueError(f"push_speed, reach_tol, time_step: expected positive values, got {push_speed}, {reach_tol}, {time_step}")
+        self.scene = scene
+        self.seed = int(seed)
+        self.renderer = renderer
+        self.push_speed = float(push_speed)
+        self.reach_tol = float(reach_tol)
+        self.settle_steps = int(settle_steps)
+        self._dt = float(time_step)
+        self._p = p
+        self.client = p.connect(p.DIRECT)
+        self._ik = p.connect(p.DIRECT)  # kinematics-only twin of the arm for planning
+        for c in (self.client, self._ik):
+            p.setAdditionalSearchPath(pybullet_data.getDataPath(), physicsClientId=c)
+        p.setTimeStep(self._dt, physicsClientId=self.client)
+        p.setPhysicsEngineParameter(deterministicOverlappingPairs=1, physicsClientId=self.client)
+        if renderer not in RENDERERS:
+            raise ValueError(f"renderer: expected one of {RENDERERS}, got {renderer!r}")
+        if renderer != "tiny" and not load_egl_plugin(self.client) and renderer == "egl":
+            raise RuntimeError("renderer='egl': PyBullet's EGL plugin (eglRenderer) did not load; use 'tiny' or 'auto'")
+        self._sim = build_pybullet(scene, self.client)
+        t = scene.table
+        self.table_top_z = t.top_z
+        self.base_pos = np.array([t.center[0], t.center[1] - t.size[1] / 2 - 0.08, t.top_z])
+        base_orn = p.getQuaternionFromEuler([0.0, 0.0, _BASE_YAW])
+        self.robot = self._load_panda(self.client, base_orn)
+        self._twin = self._load_panda(self._ik, base_orn)
+        ped_h = t.top_z / 2
+        col = p.createCollisionShape(p.GEOM_BOX, halfExtents=[0.1, 0.1, ped_h], physicsClientId=self.client)
+        vis = p.createVisualShape(p.GEOM_BOX, halfExtents=[0.1, 0.1, ped_h], rgbaColor=[0.3, 0.3, 0.32, 1], physicsClientId=self.client)
+        self.pedestal = p.createMultiBody(0.0, col, vis, [*self.base_pos[:2], ped_h], physicsClientId=self.client)
+        self._down = p.getQuaternionFromEuler([math.pi, 0.0, _BASE_YAW])
+        self._tip_offset = self._measure_tip_offset()
+        self._q = np.array(HOME_JOINTS)
+        self._hold(self._q)
+        self._settle()
+        self.home_tip = self._tip()
+        self._cameras: dict[tuple, PyBulletRGBDCamera] = {}
+
+    # -- set-up ------------------------------------------------------------------------------
+    def _load_panda(self, client: int, orn) -> int:
+        p = self._p
+        body = p.loadURDF(PANDA_URDF, self.base_pos.tolist(), orn, useFixedBase=True, physicsClientId=client)
+        for j, q in zip(_ARM, HOME_JOINTS):
+            p.resetJointState(body, j, q, physicsClientId=client)
+        for j in _FINGERS:
+            p.resetJointState(body, j, 0.0, physicsClientId=client)
+        return body
+
+    def _measure_tip_offset(self) -> float:
+        """Height of the grasp-target frame above the lowest finger point, hand pointing down."""
+        p = self._p
+        q = self._solve(self.base_pos + [0.0, 0.45, 0.3], np.array(HOME_JOINTS))[0]
+        self._set_twin(q)
+        tip = np.array(p.getLinkState(self._twin, _TIP_LINK, computeForwardKinematics=True, physicsClientId=self._ik)[4])
+        low = min(p.getAABB(self._twin, j, physicsClientId=self._ik)[0][2] for j in _FINGERS)
+        return float(tip[2] - low)
+
+    def _set_twin(self, q) -> None:
+        for j, v in zip(_ARM, q):
+            self._p.resetJointState(self._twin, j, float(v), physicsClientId=self._ik)
+
+    def _solve(self, tip_target, seed_q: np.ndarray, rounds: int = 4) -> tuple[np.ndarray, float]:
+        """Joint angles putting the grasp target at ``tip_target`` with the hand down, and the
+        remaining position error (m)."""
+        p = self._p
+        lo = [-2.9671, -1.8326, -2.9671, -3.0718, -2.9671, -0.0175, -2.9671, 0.0, 0.0]
+        hi = [2.9671, 1.8326, 2.9671, -0.0698, 2.9671, 3.7525, 2.9671, 0.04, 0.04]
+        ranges = [h - l for l, h in zip(lo, hi)]
+        target = [float(x) for x in tip_target]
+        q = np.asarray(seed_q, np.float64)
+        rest = [float(v) for v in q] + [0.0, 0.0]
+        err = math.inf
+        for _ in range(rounds):
+            self._set_twin(q)
+            sol = p.calculateInverseKinematics(
+                self._twin, _TIP_LINK, target, self._down, lowerLimits=lo, upperLimits=hi, jointRanges=ranges,
+                restPoses=rest, maxNumIterations=200, residualThreshold=1e-5, physicsClientId=self._ik,
+            )
+            q = np.clip(np.asarray(sol[:7]), lo[:7], hi[:7])
+            self._set_twin(q)
+            got = p.getLinkState(self._twin, _TIP_LINK, computeForwardKinematics=True, physicsClientId=self._ik)[4]
+            err = float(np.linalg.norm(np.asarray(got) - target))
+            if err < 1e-3:
+                break
+        return q, err
+
+    def _reach(self, tip, seed_q) -> tuple[np.ndarray, float]:
+        """IK for a fingertip point, from ``seed_q`` and then from fixed seeds until one is
+        within ``reach_tol``; returns the best joint angles and their error (m)."""
+        target = np.asarray(tip, np.float64) + [0.0, 0.0, self._tip_offset]
+        best = self._solve(target, seed_q)
+        for seed in _IK_SEEDS:
+            if best[1] <= self.reach_tol:
+                break
+            cand = self._solve(target, np.array(seed), rounds=8)
+            if cand[1] < best[1]:
+                best = cand
+        return best
+
+    def can_reach(self, xy) -> bool:
+        """Whether the fingertip can reach the table point ``xy`` (2,) at ``PUSH_HEIGHT``."""
+        xy = np.asarray(xy, np.float64).reshape(-1)
+        if xy.shape != (2,):
+            raise ValueError(f"xy: expected 2 numbers, got shape {xy.shape}")
+        return self._reach(np.array([*xy, self.table_top_z + PUSH_HEIGHT]), self._q)[1] <= self.reach_tol
+
+    # -- state ------------------------------------------------------------------------------
+    def object_poses(self) -> np.ndarray:
+        """(n, 7) float64: base-centre position xyz and quaternion wxyz, ``scene.objects`` order."""
+        p = self._p
+        out = np.empty((len(self.scene.objects), 7))
+        for i, b in enumerate(self._sim.object_body):
+            com_pos, com_orn = p.getBasePositionAndOrientation(int(b), physicsClientId=self.client)
+            info = p.getDynamicsInfo(int(b), -1, physicsClientId=self.client)
+            inv_pos, inv_orn = p.invertTransform(info[3], info[4])
+            pos, orn = p.multiplyTransforms(com_pos, com_orn, inv_pos, inv_orn)
+            out[i, :3] = pos
+            out[i, 3:] = (orn[3], orn[0], orn[1], orn[2])
+        return out
+
+    def object_aabbs(self) -> np.ndarray:
+        """(n, 2, 3) world boxes around each object's size box in its current pose."""
+        poses = self.object_poses()
+        out = np.empty((len(poses), 2, 3))
+        for i, (o, pose) in enumerate(zip(self.scene.objects, poses)):
+            sx, sy, sz = o.size
+            corners = np.array([[x, y, z] for x in (-sx / 2, sx / 2) for y in (-sy / 2, sy / 2) for z in (0.0, sz)])
+            R = np.asarray(self._p.getMatrixFromQuaternion([*pose[4:], pose[3]])).reshape(3, 3)
+            world = corners @ R.T + pose[:3]
+            out[i, 0], out[i, 1] = world.min(0), world.max(0)
+        return out
+
+    def _tip(self) -> np.ndarray:
+        """World position of the lowest fingertip point (hand pointing down)."""
+        ls = self._p.getLinkState(self.robot, _TIP_LINK, computeForwardKinematics=True, physicsClientId=self.client)
+        return np.asarray(ls[4]) - [0.0, 0.0, self._tip_offset]
+
+    # -- motion -----------------------------------------------------------------------------
+    def _hold(self, q) -> None:
+        p = self._p
+        p.setJointMotorControlArray(
+            self.robot, _ARM, p.POSITION_CONTROL, targetPositions=[float(v) for v in q], forces=_FORCES,
+            physicsClientId=self.client,
+        )
+        p.setJointMotorControlArray(
+            self.robot, _FINGERS, p.POSITION_CONTROL, targetPositions=[0.0, 0.0], forces=[20.0, 20.0],
+            physicsClientId=self.client,
+        )
+
+    def _step(self, n: int) -> bool:
+        """Step physics n times; True when the arm touched an object meanwhile."""
+        p = self._p
+        touched = False
+        objects = set(self._sim.body_object)
+        for _ in range(n):
+            p.stepSimulation(physicsClientId=self.client)
+            if not touched:
+                touched = any(c[2] in objects for c in p.getContactPoints(bodyA=self.robot, physicsClientId=self.client))
+        return touched
+
+    def _track(self, a, b, speed: float, path: list) -> bool:
+        """Move the fingertip from a to b in a straight line; True on contact with an object."""
+        a, b = np.asarray(a, float), np.asarray(b, float)
+        n = max(1, math.ceil(np.linalg.norm(b - a) / (speed * self._dt * _CONTROL_STEPS)))
+        touched = False
+        for k in range(1, n + 1):
+            target = a + (b - a) * k / n
+            self._q, err = self._solve(target + [0.0, 0.0, self._tip_offset], self._q, rounds=2)
+            if err > self.reach_tol:
+                self._q = self._reach(target, self._q)[0]
+            self._hold(self._q)
+            touched |= self._step(_CONTROL_STEPS)
+            path.append(self._tip())
+        return touched
+
+    def _settle(self) -> None:
+        p = self._p
+        for k in range(self.settle_steps):
+            p.stepSimulation(physicsClientId=self.client)
+            if k >= 24 and k % 8 == 0:
+                moving = False
+                for b in self._sim.object_body:
+                    lin, ang = p.getBaseVelocity(int(b), physicsClientId=self.client)
+                    if np.linalg.norm(lin) > 2e-3 or np.linalg.norm(ang) > 2e-2:
+                        moving = True
+                        break
+                if not moving:
+                    return
+
+    # -- the primitive ----------------------------------------------------------------------
+    def push(self, start_xy, direction_rad: float, distance: float) -> PushOutcome:
+        """Push from ``start_xy`` along world yaw ``direction_rad`` for ``distance`` metres
+        (see :meth:`sim_envs.tabletop_sim.TabletopSim.push`).
+
+        Shape:
+            ``start_xy`` (2,); ``PushOutcome.fingertip_path`` (m, 3).
+        """
+        start = np.asarray(start_xy, np.float64).reshape(-1)
+        if start.shape != (2,) or not np.all(np.isfinite(start)):
+            raise ValueError(f"start_xy: expected 2 finite numbers, got {start_xy!r}")
+        if not (math.isfinite(direction_rad) and math.isfinite(distance) and distance >= 0):
+            raise ValueError(f"direction_rad, distance: expected finite numbers and distance >= 0, got {direction_rad}, {distance}")
+        none = np.empty((0, 3))
+        aabbs = self.object_aabbs()
+        z_push = self.table_top_z + PUSH_HEIGHT
+        for i, (lo, hi) in enumerate(aabbs):
+            if hi[2] > z_push and np.all(start >= lo[:2] - 0.01) and np.all(start <= hi[:2] + 0.01):
+                o = self.scene.objects[i]
+                return PushOutcome(False, f"start point {start.round(3).tolist()} lies over object {o.id!r} ({o.name}); the fingertip would land on it", False, none)
+        safe_z = max(self.table_top_z + 0.25, float(aabbs[:, 1, 2].max(initial=0.0)) + 0.10)
+        d = np.array([math.cos(direction_rad), math.sin(direction_rad), 0.0])
+        # The hand's long side (across the fingers) turns perpendicular to the push, so what
+        # leads is the narrow side of the fingers and hand.
+        # Of the two equivalent yaws, the one nearer the base's keeps the wrist mid-range.
+        hand_yaw = _BASE_YAW + ((direction_rad - _BASE_YAW + math.pi / 2) % math.pi - math.pi / 2)
+        self._down = self._p.getQuaternionFromEuler([math.pi, 0.0, hand_yaw])
+        p0 = np.array([*start, z_push])
+        p1 = p0 + distance * d
+        n_mid = max(1, math.ceil(distance / 0.02))
+        plan = [("above the start", np.array([*start, safe_z])), ("the start", p0)]
+        plan += [("a point along the push", p0 + (p1 - p0) * k / n_mid) for k in range(1, n_mid)]
+        plan += [("the end", p1), ("above the end", np.array([*p1[:2], safe_z]))]
+        q = self._q
+        for label, point in plan:
+            q, err = self._reach(point, q)
+            if err > self.reach_tol:
+                return PushOutcome(
+                    False, f"the arm cannot reach {label} {point.round(3).tolist()} (IK error {100 * err:.1f} cm > {100 * self.reach_tol:.1f} cm)", False, none,
+                )
+        path: list[np.ndarray] = [self._tip()]
+        fast = 3 * self.push_speed
+        touched = self._track(path[-1], plan[0][1], fast, path)
+        touched |= self._track(plan[0][1], p0, fast, path)
+        touched |= self._track(p0, p1, self.push_speed, path)
+        touched |= self._track(p1, plan[-1][1], fast, path)
+        touched |= self._track(plan[-1][1], self.home_tip, fast, path)
+        self._settle()
+        return PushOutcome(True, "", bool(touched), np.asarray(path))
+
+    # -- rendering --------------------------------------------------------------------------
+    def render(self, eye, target, width: int, height: int, fovy_deg: float = 60.0, segmentation: bool = True) -> RGBDFrame:
+        """One posed RGB-D frame: OpenCV camera, metric depth, segmentation = object index.
+
+        Shape:
+            see :class:`~sim_envs.mujoco_camera.RGBDFrame`.
+        """
+        key = (int(width), int(height), float(fovy_deg))
+        cam = self._cameras.get(key)
+        if cam is None:
+            cam = PyBulletRGBDCamera(self.client, width, height, fovy_deg=fovy_deg, body_object=self._sim.body_lut(), renderer=self.renderer)
+            self._cameras[key] = cam
+        cam.set_pose(eye, target)
+        return cam.render(segmentation=segmentation)
+
+    def close(self) -> None:
+        """Disconnect both PyBullet clients (idempotent)."""
+        for c in (self.client, self._ik):
+            forget_client(c)
+            try:
+                self._p.disconnect(physicsClientId=c)
+            except Exception:  # already disconnected
+                pass
+        self._cameras.clear()
