@@ -6,7 +6,8 @@ A spec is ``NAME`` or ``NAME:ARGUMENT``:
 - ``minilm-text``: the offline MiniLM text tower (``TextEncoder``: text only).
 - ``hf:HUB_ID`` or ``hf:/local/dir``: Hugging Face CLIP (``Encoder``; :mod:`conceptfusion.clip_hf`).
 - ``onnx:DIR``: CLIP exported to ONNX (``Encoder``; :mod:`conceptfusion.clip_onnx`).
-- ``embedded:DIR``: the embedded image tower + MiniLM text tower (``Encoder``).
+- ``embedded`` or ``embedded:DIR``: the embedded image tower + MiniLM text tower (``Encoder``);
+  without an argument, the weights shipped with the package (:data:`DEFAULT_ENCODER`).
 - ``audio-onnx:DIR``: an audio-language encoder in ONNX (``AudioEncoder``; :mod:`conceptfusion.audio`).
 
 ``embedded`` is registered only where :mod:`conceptfusion.image_tower` exists. Oracle
@@ -21,7 +22,10 @@ import difflib
 import importlib.util
 from typing import Callable
 
-__all__ = ["ENCODERS", "parse_encoder_spec", "make_encoder", "describe_encoders"]
+__all__ = ["ENCODERS", "DEFAULT_ENCODER", "parse_encoder_spec", "make_encoder", "describe_encoders"]
+
+DEFAULT_ENCODER = "embedded"
+"""The spec the harness uses when none is given: the shipped embedded tower (offline, CPU)."""
 
 
 def _no_arg(name: str, arg: str | None) -> None:
@@ -66,11 +70,12 @@ def _onnx(arg: str | None):
 
 
 def _embedded(arg: str | None):
-    """Embedded image tower (ONNX) aligned to the MiniLM text tower: embedded:DIR."""
-    from conceptfusion.image_tower import EmbeddedEncoder
+    """Embedded image tower (ONNX) aligned to the MiniLM text tower: embedded (shipped) or embedded:DIR."""
+    from conceptfusion.image_tower import SHIPPED_TOWER_DIR, EmbeddedEncoder
     from conceptfusion.text_tower import MiniLMTextEncoder
 
-    return EmbeddedEncoder(_need_arg("embedded", arg, "dir"), MiniLMTextEncoder())
+    tower_dir = SHIPPED_TOWER_DIR if arg is None else _need_arg("embedded", arg, "dir")
+    return EmbeddedEncoder(tower_dir, MiniLMTextEncoder())
 
 
 def _audio_onnx(arg: str | None):

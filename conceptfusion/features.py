@@ -10,6 +10,10 @@ embeddings ``f_L_i``:
   when ``uniqueness=False``;
 * ``f_P_i = w_i f_G + (1 - w_i) f_L_i``, L2-normalised (eq. 6).
 
+``mode`` selects the paper's ablation variants: ``"full"`` (eqs. 3-6, the default),
+``"global"`` (``w_i = 1``: every masked pixel gets ``f_G``) and ``"local"`` (``w_i = 0``:
+each region keeps its own ``f_L_i``).
+
 ``f_G`` and every ``f_L_i`` are L2-normalised before mixing (foundation-model embeddings
 are compared by cosine, so their length carries no meaning). A pixel covered by several
 masks gets the L2-normalised sum of their ``f_P_i``, independent of mask order; a pixel
@@ -38,9 +42,21 @@ __all__ = [
     "pixel_aligned_features",
     "mask_bboxes",
     "crop_masks",
+    "FEATURE_MODES",
+    "check_mode",
 ]
 
 _EPS = 1e-8
+
+FEATURE_MODES = ("full", "global", "local")
+"""Pixel-feature variants: eqs. 3-6, global embedding only, local (crop) embeddings only."""
+
+
+def check_mode(mode) -> str:
+    """``mode`` if it is one of :data:`FEATURE_MODES`; ``ValueError`` naming them otherwise."""
+    if mode not in FEATURE_MODES:
+        raise ValueError(f"mode: expected one of {FEATURE_MODES}, got {mode!r}")
+    return mode
 
 
 @dataclass(frozen=True)
@@ -167,14 +183,23 @@ def mixing_weights(global_feat_d, local_feats_rd, *, tau: float = 1.0, uniquenes
     return z / z.sum()
 
 
-def region_features(global_feat_d, local_feats_rd, *, tau: float = 1.0, uniqueness: bool = True) -> np.ndarray:
+def region_features(
+    global_feat_d, local_feats_rd, *, tau: float = 1.0, uniqueness: bool = True, mode: str = "full"
+) -> np.ndarray:
     """Unit-length pixel-aligned feature ``f_P_i`` of each region (paper eq. 6).
+
+    ``mode="global"`` gives every region ``f_G`` (``w_i = 1``), ``mode="local"`` its own
+    ``f_L_i`` (``w_i = 0``); ``"full"`` mixes them with the weights of eqs. 3-5.
 
     Shape:
         (d,), (R, d) -> (R, d) float32.
     """
+    check_mode(mode)
     g, local = _check_embeddings(global_feat_d, local_feats_rd)
-    w = mixing_weights(g, local, tau=tau, uniqueness=uniqueness)[:, None]
+    if mode == "full":
+        w = mixing_weights(g, local, tau=tau, uniqueness=uniqueness)[:, None]
+    else:
+        w = np.full((local.shape[0], 1), 1.0 if mode == "global" else 0.0)
     return _unit(w * _unit(g)[None] + (1.0 - w) * _unit(local)).astype(np.float32)
 
 
@@ -197,6 +222,7 @@ def pixel_aligned_palette(
     tau: float = 1.0,
     uniqueness: bool = True,
     image_hw: tuple[int, int] | None = None,
+    mode: str = "full",
 ) -> PixelFeatures:
     """Pixel-aligned features of a frame in palette form (see the module docstring).
 
@@ -207,10 +233,12 @@ def pixel_aligned_palette(
         tau: softmax temperature of eq. 5.
         uniqueness: include the ``phibar`` term of eq. 4.
         image_hw: if given, the masks must have this size.
+        mode: ``"full"``, ``"global"`` or ``"local"`` (see :func:`region_features`).
 
     Shape:
         (d,), (R, d), (R, H, W) -> :class:`PixelFeatures` with palette (P, d), index (H, W).
     """
+    check_mode(mode)
     g, local = _check_embeddings(global_feat_d, local_feats_rd)
     masks = _check_masks(masks_rhw, local.shape[0], image_hw)
     r, h, w = masks.shape
@@ -218,7 +246,7 @@ def pixel_aligned_palette(
     index = np.full(h * w, -1, dtype=np.int32)
     if r == 0:
         return PixelFeatures(np.zeros((0, d), np.float32), index.reshape(h, w))
-    f_p = region_features(g, local, tau=tau, uniqueness=uniqueness).astype(np.float64)
+    f_p = region_features(g, local, tau=tau, uniqueness=uniqueness, mode=mode).astype(np.float64)
     # A pixel's feature depends only on the set of masks covering it: pack that set into
     # bytes per pixel and find the distinct sets.
     packed = np.packbits(masks.reshape(r, h * w), axis=0)  # (ceil(R/8), HW)

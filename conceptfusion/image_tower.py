@@ -24,7 +24,10 @@ import numpy as np
 from conceptfusion.encoders import check_images, check_texts
 from conceptfusion.errors import MissingDependencyError
 
-__all__ = ["TowerConfig", "preprocess", "build_tower", "export_tower_onnx", "EmbeddedEncoder"]
+__all__ = ["TowerConfig", "SHIPPED_TOWER_DIR", "preprocess", "build_tower", "export_tower_onnx", "EmbeddedEncoder"]
+
+SHIPPED_TOWER_DIR = Path(__file__).resolve().parent / "data" / "embedded_tower"
+"""The trained tower that ships with the package (``make_encoder("embedded")``; see docs/model_card.md)."""
 
 _MEAN = np.array([0.485, 0.456, 0.406], np.float32)
 _STD = np.array([0.229, 0.224, 0.225], np.float32)
@@ -42,6 +45,9 @@ class TowerConfig:
     """Channels of the four stages (each halves the resolution)."""
     blocks_per_stage: int = 2
     """Residual blocks per stage."""
+    stem_stride: int = 1
+    """Stride of the stem convolution (2 quarters the cost of every stage: the shipped tower
+    uses it, so that training fits a CPU budget)."""
 
 
 def preprocess(images: Sequence[np.ndarray], input_size: int) -> np.ndarray:
@@ -101,7 +107,7 @@ def build_tower(config: TowerConfig = TowerConfig()):
     class Tower(nn.Module):
         def __init__(self, cfg: TowerConfig) -> None:
             super().__init__()
-            layers = [nn.Conv2d(3, cfg.widths[0], 3, 1, 1, bias=False), nn.BatchNorm2d(cfg.widths[0]), nn.ReLU()]
+            layers = [nn.Conv2d(3, cfg.widths[0], 3, cfg.stem_stride, 1, bias=False), nn.BatchNorm2d(cfg.widths[0]), nn.ReLU()]
             cin = cfg.widths[0]
             for cout in cfg.widths:
                 for b in range(cfg.blocks_per_stage):

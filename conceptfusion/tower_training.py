@@ -131,8 +131,9 @@ def train_tower(train: CropSet, targets_cd: np.ndarray, config: TrainConfig = Tr
     rng = np.random.default_rng(config.seed)
     model = build_tower(config.tower)
     logit_scale = torch.nn.Parameter(torch.tensor(math.log(10.0)))
-    params = list(model.parameters()) + [logit_scale]
-    opt = torch.optim.AdamW(params, lr=config.lr, weight_decay=config.weight_decay)
+    # the temperature is not decayed: decay would pull the logit scale towards 1
+    opt = torch.optim.AdamW([{"params": list(model.parameters())}, {"params": [logit_scale], "weight_decay": 0.0}],
+                            lr=config.lr, weight_decay=config.weight_decay)
     warm = max(1, config.steps // 20)
 
     def lr_at(step: int) -> float:
@@ -158,7 +159,7 @@ def train_tower(train: CropSet, targets_cd: np.ndarray, config: TrainConfig = Tr
         opt.step()
         if log_every and (step % log_every == 0 or step == config.steps - 1):
             acc = float((logits.argmax(1) == y).float().mean())
-            logger.info("step %d/%d loss %.3f batch acc %.2f scale %.1f", step, config.steps, float(loss), acc, float(logit_scale.exp()))
+            logger.info("step %d/%d loss %.3f batch acc %.2f scale %.1f", step, config.steps, loss.item(), acc, logit_scale.exp().item())
     return model.eval()
 
 
