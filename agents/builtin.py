@@ -1,0 +1,107 @@
+"""The built-in agents, registered by name (see :mod:`agents.registry`).
+
+Perception is chosen per agent with ``encoder``:
+
+* ``"oracle"`` (privileged): ground-truth segmentation labelled with the MiniLM text embedding of
+  each object's name (:class:`conceptfusion.oracle.OracleFeatures`), for upper bounds and
+  regression tests that must not depend on perception;
+* ``"embedded"`` (default): the shipped image tower + MiniLM text tower with RGB-D mask proposals;
+* any other encoder registry spec (``"hf:..."``, ``"onnx:DIR"``, ``"color"``) with ``proposer``.
+
+=================  ===================  ==========  ======================================
+name               task                 map         what
+=================  ===================  ==========  ======================================
+map-pusher         tabletop_rearrange   yes         scan -> map -> median -> push, re-check
+frame-pusher       tabletop_rearrange   no (2.5D)   same, from the current frame only
+random-pusher      tabletop_rearrange   no          random pushes
+oracle-pusher      tabletop_rearrange   privileged  ground-truth poses (solvability check)
+map-navigator      object_search        yes         map, query, OMPL plan, pure pursuit
+frame-searcher     object_search        no (2.5D)   current frame only, reactive wandering
+random-walker      object_search        no          random velocities
+=================  ===================  ==========  ======================================
+"""
+
+from __future__ import annotations
+
+from agents.concept_map import ConceptMapper, MapperConfig
+from agents.registry import AgentSpec, register_agent
+
+__all__ = ["make_mapper", "ORACLE_MIN_SCORE"]
+
+ORACLE_MIN_SCORE = 0.85
+"""Score floor with oracle features: exact names score >= 0.9 against their MiniLM text
+embedding, near-miss names (another colour, another kind) <= 0.75."""
+
+
+def make_mapper(encoder: str = "embedded", proposer: str = "rgbd", *, persistent: bool = True) -> ConceptMapper:
+    """A :class:`ConceptMapper` for an encoder name (see the module docstring)."""
+    if encoder == "oracle":
+        from conceptfusion.text_tower import MiniLMTextEncoder
+
+        return ConceptMapper(MiniLMTextEncoder(), oracle=True, config=MapperConfig(persistent=persistent, min_score=ORACLE_MIN_SCORE))
+    from conceptfusion.encoder_registry import make_encoder
+    from conceptfusion.masks import make_proposer
+
+    enc = make_encoder(encoder)
+    floor = getattr(enc, "info", {}).get("metrics", {}).get("score_floor") if hasattr(enc, "info") else None
+    return ConceptMapper(enc, make_proposer(proposer), MapperConfig(persistent=persistent, min_score=floor))
+
+
+def _map_pusher(encoder: str = "embedded", proposer: str = "rgbd", scan: bool = True):
+    from agents.pusher import MapPusher
+
+    return MapPusher(make_mapper(encoder, proposer), use_scan=scan)
+
+
+def _frame_pusher(encoder: str = "embedded", proposer: str = "rgbd"):
+    from agents.pusher import MapPusher
+
+    return MapPusher(make_mapper(encoder, proposer, persistent=False), use_scan=False)
+
+
+def _map_navigator(encoder: str = "embedded", proposer: str = "rgbd", seed: int = 0, integrate_every: int = 1):
+    from agents.navigator import MapNavigator, NavigatorConfig
+
+    return MapNavigator(make_mapper(encoder, proposer), NavigatorConfig(integrate_every=integrate_every), seed=seed)
+
+
+def _frame_searcher(encoder: str = "embedded", proposer: str = "rgbd"):
+    from agents.baselines import FrameSearcher
+
+    return FrameSearcher(make_mapper(encoder, proposer, persistent=False))
+
+
+_PERCEPTION = {"encoder": (str, "embedded"), "proposer": (str, "rgbd")}
+
+register_agent(AgentSpec(
+    "map-pusher", _map_pusher, "tabletop_rearrange",
+    "ConceptFusion map from an orbit scan; pushes each named object's median across the line; re-checks and retries",
+    {**_PERCEPTION, "scan": (bool, True)}, uses_map=True,
+))
+register_agent(AgentSpec(
+    "frame-pusher", _frame_pusher, "tabletop_rearrange",
+    "single-frame (2.5D) pusher: the same perception on the current camera frame only, no map",
+    dict(_PERCEPTION),
+))
+register_agent(AgentSpec(
+    "random-pusher", "agents.baselines:RandomPusher", "tabletop_rearrange",
+    "random straight pushes on the table, random number of pushes", {"seed": (int, 0), "max_pushes": (int, 4)},
+))
+register_agent(AgentSpec(
+    "oracle-pusher", "agents.oracle_push:OraclePushAgent", "tabletop_rearrange",
+    "privileged scripted pusher on ground-truth poses (proves episodes solvable)", {}, privileged=True,
+))
+register_agent(AgentSpec(
+    "map-navigator", _map_navigator, "object_search",
+    "ConceptFusion map built online; goal query, OMPL path to the goal or a frontier, pure pursuit, stop",
+    {**_PERCEPTION, "seed": (int, 0), "integrate_every": (int, 1)}, uses_map=True,
+))
+register_agent(AgentSpec(
+    "frame-searcher", _frame_searcher, "object_search",
+    "map-free searcher: checks each frame with the same perception, drives to what it sees, wanders otherwise",
+    dict(_PERCEPTION),
+))
+register_agent(AgentSpec(
+    "random-walker", "agents.baselines:RandomWalker", "object_search",
+    "random velocity commands, random stop", {"seed": (int, 0), "p_stop": (float, 0.01)},
+))

@@ -1,0 +1,213 @@
+"""The waypoint navigator (paper: "drive to the football field"): map, query, plan, follow, stop.
+
+Per step the navigator fuses the current RGB-D frame into its ConceptFusion map, then acts by
+phase:
+
+1. ``look``: turn in place through a full circle, mapping the surroundings;
+2. ``plan``: query the map for the goal description. Found: build a 2-D occupancy grid from the
+   map's points (obstacle height band), inflate it by the robot radius, pick a reachable goal
+   cell within ``standoff`` of the region's footprint and plan to it with OMPL. Not found: plan
+   to the best frontier (explored free space next to unobserved space) instead;
+3. ``follow``: pure-pursuit tracking of the path, re-querying the goal and checking the path
+   against the updated grid every few steps (replan when blocked or when the goal appears);
+4. at the goal: ``stop``. With no goal and no frontier left, it stops where it is.
+
+Observations: ``rgb``, ``depth``, ``K``, ``cam_to_world`` (posed RGB-D), ``base_pose`` (x, y,
+yaw odometry) and ``goal`` (text). Actions: ``[linear m/s, angular rad/s, stop]`` (stop > 0.5
+ends the episode), the ``cf/ObjectSearch`` action space.
+"""
+
+from __future__ import annotations
+
+import dataclasses
+import logging
+import math
+from dataclasses import dataclass, field
+
+import numpy as np
+
+from agents.concept_map import ConceptMapper
+from agents.frontier import choose_frontier, find_frontiers
+from planners.occupancy import GridConfig, build_occupancy_grid, nearest_free_cell, reachable_goal_near
+from planners.ompl_2d import BasePlannerConfig, plan_base_path
+from planners.replan import check_path_blocked
+from planners.tracking import PurePursuitConfig, TrackingState, pure_pursuit_step
+
+__all__ = ["NavigatorConfig", "MapNavigator", "search_action"]
+
+_LOG = logging.getLogger(__name__)
+
+
+def search_action(linear: float = 0.0, angular: float = 0.0, stop: bool = False) -> np.ndarray:
+    """An ObjectSearch action: ``[linear, angular, stop]`` as float32, shape (3,)."""
+    return np.array([linear, angular, 1.0 if stop else 0.0], np.float32)
+
+
+@dataclass(frozen=True)
+class NavigatorConfig:
+    """Settings of :class:`MapNavigator`."""
+
+    robot_radius: float = 0.25
+    """Base radius (m); the grid is inflated by this plus ``clearance``."""
+    clearance: float = 0.05
+    """Extra margin (m) kept from obstacles."""
+    standoff: float = 0.9
+    """Goal cells lie within this distance (m) of the object's footprint (success is 1.0 m)."""
+    grid: GridConfig = field(default_factory=lambda: GridConfig(resolution=0.05, obstacle_z_min=0.08, obstacle_z_max=1.6, padding=1.0))
+    tracking: PurePursuitConfig = field(default_factory=lambda: PurePursuitConfig(lookahead=0.35, max_linear=0.5, max_angular=1.2, goal_tolerance=0.12))
+    planner: BasePlannerConfig = field(default_factory=lambda: BasePlannerConfig(time_limit=0.5))
+    look_angular: float = 1.2
+    """Yaw rate (rad/s) of the look-around turn."""
+    recheck_every: int = 4
+    """Steps between goal re-queries and path checks while following."""
+    max_plan_failures: int = 6
+    """Stop after this many consecutive planning failures."""
+    integrate_every: int = 1
+    """Fuse every k-th frame while driving (every frame while looking around); > 1 trades map
+    density for speed with slow encoders."""
+
+
+class MapNavigator:
+    """Map-equipped object-search agent (see the module docstring).
+
+    Args:
+        mapper: the ConceptFusion mapper (perceived or oracle).
+        config: see :class:`NavigatorConfig`.
+        seed: seeds OMPL.
+    """
+
+    def __init__(self, mapper: ConceptMapper, config: NavigatorConfig = NavigatorConfig(), *, seed: int = 0) -> None:
+        self.mapper, self.config, self.seed = mapper, config, int(seed)
+        self.privileged = mapper.privileged
+        self.reset()
+
+    def reset(self, *, seed: int | None = None) -> None:
+        if seed is not None:
+            self.seed = int(seed)
+        self._started = False
+        self._phase = "look"
+        self._turned = 0.0
+        self._last_yaw: float | None = None
+        self._path: np.ndarray | None = None
+        self._track = TrackingState()
+        self._to_goal = False
+        self._steps = 0
+        self._failures = 0
+        self._visited: list[np.ndarray] = []
+        self._closest_approach: float | None = None
+        self.log: list[str] = []
+        """Why the agent did what it did, one line per decision (for reports)."""
+
+    # -- helpers ---------------------------------------------------------------------------
+
+    def _note(self, text: str) -> None:
+        self.log.append(f"step {self._steps}: {text}")
+        _LOG.debug(text)
+
+    def _grids(self, position_xy=None):
+        """Raw and inflated occupancy grids from the map's points. When the base's own cell is
+        blocked after inflation (it stands closer to a wall than radius + clearance, or the
+        wall's points are spread by noise), the inflation falls back to the bare radius and, if
+        still blocked, the cells under the base are cleared so it can plan its way out."""
+        pts = self.mapper.map.points
+        grid = build_occupancy_grid(pts, self.config.grid)
+        c = self.config
+        inflated = grid.inflate(c.robot_radius + c.clearance + grid.resolution / 2)
+        if position_xy is None or not inflated.is_blocked_xy(np.asarray(position_xy)[None])[0]:
+            return grid, inflated
+        inflated = grid.inflate(c.robot_radius)
+        if inflated.is_blocked_xy(np.asarray(position_xy)[None])[0]:
+            centres = inflated.cell_to_world(np.argwhere(np.ones(inflated.shape, bool))).reshape(*inflated.shape, 2)
+            near = np.linalg.norm(centres - np.asarray(position_xy), axis=-1) <= max(c.robot_radius / 2, grid.resolution)
+            inflated = dataclasses.replace(inflated, occupied_hw=inflated.occupied_hw & ~near)
+        return grid, inflated
+
+    def _plan(self, pose: np.ndarray) -> np.ndarray:
+        """Choose a target (goal or frontier), plan to it; returns the next action."""
+        goal_text = self._goal
+        found = self.mapper.locate(goal_text)
+        start = pose[:2]
+        grid, inflated = self._grids(start)
+        target, self._to_goal = None, False
+        if found.found:
+            footprint = found.best.points_n3[:, :2]
+            near = float(np.min(np.linalg.norm(footprint - start, axis=1)))
+            if near <= self.config.standoff + 0.05 or (self._closest_approach and near <= self._closest_approach + 0.05):
+                self._note(f"'{goal_text}' is within reach ({near:.2f} m): stop")
+                return search_action(stop=True)
+            target = reachable_goal_near(inflated, start, footprint, standoff=self.config.standoff)
+            if target is None:
+                # Deep inside furniture or behind clutter: get as close as the free space allows.
+                target = nearest_free_cell(inflated, np.median(footprint, axis=0), reachable_from_xy=start)
+                if target is not None:
+                    self._closest_approach = float(np.min(np.linalg.norm(footprint - target, axis=1)))
+                    self._note(f"'{goal_text}' found; no free cell within {self.config.standoff} m, approaching to {self._closest_approach:.2f} m")
+            if target is not None:
+                self._to_goal = True
+            else:
+                self._note(f"'{goal_text}' found but not reachable from here; exploring")
+        if target is None:
+            frontier = choose_frontier(find_frontiers(grid, start, inflated=inflated), start, self._visited)
+            if frontier is None:
+                self._note("no goal and no frontier left: stop")
+                return search_action(stop=True)
+            target = frontier.target_xy
+            self._visited.append(target)
+        plan = plan_base_path(inflated, start, target, self.config.planner, seed=self.seed + self._steps)
+        if not plan.solved:
+            self._failures += 1
+            self._note(f"planning to {np.round(target, 2).tolist()} failed: {plan.status} ({plan.reason})")
+            if self._failures >= self.config.max_plan_failures:
+                return search_action(stop=True)
+            if plan.status == "start_in_collision":  # wedged against something: back off
+                return search_action(-0.2, 0.0)
+            self._phase = "look"
+            self._turned = 0.0
+            return search_action(0.0, self.config.look_angular)
+        self._failures = 0
+        if self._to_goal and plan.length <= 2 * self.config.tracking.goal_tolerance:
+            self._note(f"at the closest free point to '{goal_text}': stop")
+            return search_action(stop=True)
+        self._path, self._track, self._phase = plan.path, TrackingState(), "follow"
+        self._note(f"{'goal' if self._to_goal else 'frontier'} path of {plan.length:.2f} m to {np.round(target, 2).tolist()}")
+        return self._follow(pose)
+
+    def _follow(self, pose: np.ndarray) -> np.ndarray:
+        cmd, self._track = pure_pursuit_step(pose, self._path, self._track, self.config.tracking)
+        if cmd.done:
+            if self._to_goal:
+                return self._plan(pose)  # re-check from here: stops when within reach
+            self._phase, self._turned = "look", 0.0
+            return search_action(0.0, self.config.look_angular)
+        return search_action(cmd.linear, cmd.angular)
+
+    # -- protocol --------------------------------------------------------------------------
+
+    def act(self, observation, info: dict | None = None) -> np.ndarray:
+        pose = np.asarray(observation["base_pose"], np.float64)
+        if not self._started:
+            self._goal = str(observation["goal"])
+            names = dict(enumerate(info["object_names"])) if (self.mapper.oracle and info) else None
+            self.mapper.reset(names)
+            self._started = True
+        if self._phase == "look" or self._steps % max(1, self.config.integrate_every) == 0:
+            self.mapper.integrate(observation, segmentation=(info or {}).get("segmentation") if self.privileged else None)
+        self._steps += 1
+        if self._last_yaw is not None:
+            self._turned += abs(math.remainder(pose[2] - self._last_yaw, 2 * math.pi))
+        self._last_yaw = float(pose[2])
+        if self._phase == "look":
+            if self._turned < 2 * math.pi - 0.3:
+                return search_action(0.0, self.config.look_angular)
+            return self._plan(pose)
+        if self._phase == "follow":
+            if self._steps % self.config.recheck_every == 0:
+                if not self._to_goal and self.mapper.locate(self._goal).found:
+                    self._note(f"'{self._goal}' appeared: replan")
+                    return self._plan(pose)
+                _, inflated = self._grids(pose[:2])
+                if check_path_blocked(inflated, self._path, position_xy=pose[:2], skip_distance=0.3).blocked:
+                    self._note("path blocked: replan")
+                    return self._plan(pose)
+            return self._follow(pose)
+        return self._plan(pose)

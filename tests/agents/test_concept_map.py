@@ -1,0 +1,93 @@
+"""The online mapper: scan frames of a MuJoCo tabletop in, 3D object positions out."""
+
+import gymnasium as gym
+import numpy as np
+import pytest
+
+import sim_envs  # noqa: F401
+from agents.concept_map import ConceptMapper, MapperConfig
+from conceptfusion.encoders import ColorNameEncoder
+from conceptfusion.masks import make_proposer
+from sim_envs.assets import COLORS
+
+
+def _scan(seed=3, frames=8):
+    env = gym.make("cf/SceneScan-v0", num_frames=frames, width=160, height=120)
+    obs, info = env.reset(seed=seed)
+    out = [(obs, info)]
+    for _ in range(frames - 1):
+        obs, _, term, _, info = env.step(0)
+        out.append((obs, info))
+    env.close()
+    return out
+
+
+@pytest.fixture(scope="module")
+def scan():
+    return _scan()
+
+
+def _unique_colour_objects(info):
+    names = info["object_names"]
+    colours = [n.split()[0] for n in names]
+    return [(i, n) for i, n in enumerate(names) if colours.count(n.split()[0]) == 1]
+
+
+@pytest.mark.parametrize("oracle", [True, False])
+def test_mapper_finds_objects_and_rejects_absent_colour(scan, oracle):
+    enc = ColorNameEncoder()
+    mapper = ConceptMapper(enc, None if oracle else make_proposer("gt"), oracle=oracle)
+    info0 = scan[0][1]
+    mapper.reset(dict(enumerate(info0["object_names"])))
+    for obs, info in scan:
+        mapper.integrate(obs, segmentation=info["segmentation"])
+    assert mapper.frames == len(scan) and len(mapper.map) > 1000
+    boxes = {o["name"]: np.asarray(o["aabb"]) for o in info0["scene_graph"]["objects"]}
+    checked = 0
+    for _, name in _unique_colour_objects(info0):
+        res = mapper.locate(name)
+        assert res.found, (name, res.reason)
+        lo, hi = boxes[name]
+        centre = (lo + hi) / 2
+        errors = [np.linalg.norm(r.median[:2] - centre[:2]) for r in res.regions]
+        # Oracle features are exact: the best region is the object. The colour-only test
+        # encoder confuses neighbouring hues (orange/yellow), so there the object must be
+        # among the regions found.
+        assert (errors[0] if oracle else min(errors)) < 0.05, (name, errors)
+        checked += 1
+    assert checked >= 2
+    present = {n.split()[0] for n in info0["object_names"]}
+    absent = sorted(set(COLORS) - present - {"brown"})  # brown: the wooden table
+    if absent and oracle:  # the colour-only encoder's hues overlap; exact features must not
+        assert not mapper.locate(f"{absent[0]} thing").found
+
+
+def test_single_frame_mode_keeps_only_the_last_view(scan):
+    mapper = ConceptMapper(ColorNameEncoder(), make_proposer("gt"), MapperConfig(persistent=False))
+    mapper.reset()
+    sizes = []
+    for obs, info in scan[:3]:
+        mapper.integrate(obs, segmentation=info["segmentation"])
+        sizes.append(len(mapper.map))
+    full = ConceptMapper(ColorNameEncoder(), make_proposer("gt"))
+    full.reset()
+    for obs, info in scan[:3]:
+        full.integrate(obs, segmentation=info["segmentation"])
+    assert len(full.map) > max(sizes)
+    valid = np.isfinite(scan[2][0]["depth"]).sum()
+    assert sizes[-1] <= valid
+
+
+def test_mapper_bad_input():
+    enc = ColorNameEncoder()
+    with pytest.raises(ValueError, match="mask proposer"):
+        ConceptMapper(enc, None)
+    m = ConceptMapper(enc, None, oracle=True)
+    with pytest.raises(ValueError, match="object names"):
+        m.reset()
+    m.reset({0: "red mug"})
+    with pytest.raises(KeyError, match="cam_to_world"):
+        m.integrate({"rgb": np.zeros((4, 4, 3), np.uint8)})
+    with pytest.raises(ValueError, match="non-empty"):
+        m.locate("  ")
+    assert m.privileged and not ConceptMapper(enc, make_proposer("rgbd")).privileged
