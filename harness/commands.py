@@ -1,0 +1,186 @@
+"""The ``cfharness`` subcommands that evaluate: ``run``, ``compare``, ``report``, ``list``.
+
+(The parser lives in :mod:`harness.cli`; these functions take its parsed arguments.)
+"""
+
+from __future__ import annotations
+
+import argparse
+import json
+import sys
+import time
+from pathlib import Path
+
+__all__ = ["add_eval_commands"]
+
+
+def _parse_kv(items: list[str] | None) -> dict:
+    out = {}
+    for item in items or []:
+        key, sep, value = item.partition("=")
+        if not sep or not key:
+            raise ValueError(f"--agent-option: expected KEY=VALUE, got {item!r}")
+        out[key.strip()] = value.strip()
+    return out
+
+
+def _print_summary(records: list[dict], stream=sys.stdout) -> None:
+    from harness.stats import summarize
+
+    rows = summarize(records)
+    if not rows:
+        print("no results", file=stream)
+        return
+    header = f"{'suite':<22} {'agent':<28} {'encoder':<10} {'n':>4} {'fail':>4}  metrics"
+    print(header, file=stream)
+    print("-" * len(header), file=stream)
+    for r in rows:
+        d = r.as_dict()
+        parts = []
+        for name, m in d.get("metrics", {}).items():
+            if m.get("mean") is None:
+                continue
+            lo, hi = m.get("ci", (None, None))
+            ci = f" [{lo:.2f}, {hi:.2f}]" if lo is not None and hi is not None and lo == lo else ""
+            parts.append(f"{name} {m['mean']:.3f}{ci}")
+        print(f"{d['suite']:<22} {d['agent']:<28} {d['encoder']:<10} {d['n']:>4} {d['n_failed']:>4}  " + "; ".join(parts[:5]), file=stream)
+
+
+def cmd_run(args: argparse.Namespace) -> int:
+    from harness.run import RunConfig, run_suites
+    from harness.suites import DEFAULT_SUITES, get_suite
+
+    suites = tuple(args.suite or DEFAULT_SUITES)
+    try:
+        for s in suites:
+            get_suite(s)
+        config = RunConfig(
+            suites=suites, agents=tuple(args.agent) if args.agent else None, encoder=args.encoder,
+            agent_kwargs=_parse_kv(args.agent_option), limit=args.limit, seed=args.seed, backend=args.backend,
+            workers=args.workers, address=args.address, timeout_s=args.timeout,
+        )
+        t0 = time.monotonic()
+        print(f"run {args.out}: suites {', '.join(suites)}; encoder {config.encoder}; backend {config.backend}", file=sys.stderr)
+        records = run_suites(config, args.out, resume=args.resume)
+    except (ValueError, FileExistsError, FileNotFoundError) as exc:
+        print(f"cfharness run: {exc}", file=sys.stderr)
+        return 2
+    _print_summary(records)
+    print(f"\n{len(records)} records in {Path(args.out) / 'results.jsonl'} ({time.monotonic() - t0:.0f} s)")
+    if not args.no_report:
+        from harness.report import write_report
+
+        path = write_report([args.out], Path(args.out) / "report")
+        print(f"report: {path}")
+    return _check_floors(records, suites)
+
+
+def _check_floors(records: list[dict], suites: tuple[str, ...]) -> int:
+    """Non-zero when a regression suite's agent falls below its success floor."""
+    from harness.suites import get_suite
+
+    bad = []
+    for name in suites:
+        suite = get_suite(name)
+        for agent, floor in suite.floors.items():
+            rs = [r for r in records if r["suite"] == name and r["agent"] == agent]
+            if not rs:
+                continue
+            rate = sum(bool(r["metrics"].get("success")) for r in rs) / len(rs)
+            if rate < floor:
+                bad.append(f"{name}: {agent} succeeded on {rate:.0%} of {len(rs)} episodes, below its floor {floor:.0%}")
+    for line in bad:
+        print(f"REGRESSION {line}", file=sys.stderr)
+    return 1 if bad else 0
+
+
+def cmd_compare(args: argparse.Namespace) -> int:
+    from harness.results import load_results
+    from harness.stats import paired_comparison
+
+    records = [r for d in args.runs for r in load_results(Path(d) / "results.jsonl")]
+    try:
+        res = paired_comparison(records, args.a, args.b, metric=args.metric, suite=args.suite)
+    except ValueError as exc:
+        print(f"cfharness compare: {exc}", file=sys.stderr)
+        return 2
+    print(json.dumps(res.as_dict() if hasattr(res, "as_dict") else res.__dict__, indent=2, default=str))
+    return 0
+
+
+def cmd_report(args: argparse.Namespace) -> int:
+    from harness.report import write_report
+
+    path = write_report(list(args.runs), Path(args.out) if args.out else Path(args.runs[0]) / "report")
+    print(f"report: {path}")
+    return 0
+
+
+def cmd_list(args: argparse.Namespace) -> int:
+    from agents.registry import AGENTS, _load_builtin
+    from conceptfusion.encoder_registry import describe_encoders
+    from harness.suites import SUITES
+
+    _load_builtin()
+    print("suites:")
+    for s in SUITES.values():
+        print(f"  {s.name:<22} {s.description}")
+    print("agents:")
+    for a in AGENTS.values():
+        opts = ", ".join(f"{k}={d!r}" for k, (_, d) in a.kwargs.items())
+        tag = " (privileged)" if a.privileged else (" (map)" if a.uses_map else "")
+        print(f"  {a.name:<16} {a.task:<20}{tag} {a.description}" + (f"\n  {'':<16} options: {opts}" if opts else ""))
+    print("encoders:")
+    for name, text in describe_encoders().items():
+        print(f"  {name:<16} {text}")
+    print("  oracle           privileged: ground-truth segmentation with MiniLM name embeddings (agents only)")
+    return 0
+
+
+def add_eval_commands(sub) -> None:
+    """Add ``run``, ``compare``, ``report`` and ``list`` to the ``cfharness`` subparsers."""
+    from harness.backends import BACKENDS
+    from harness.suites import DEFAULT_SUITES, SUITES
+
+    run = sub.add_parser(
+        "run", help="run evaluation suites for agents and write results + a report",
+        description="Roll agents through the shipped episodes and score maps against simulator ground truth. "
+        f"With no --suite it runs {', '.join(DEFAULT_SUITES)} with every suite's default agents "
+        "(map-equipped and map-free) on the embedded perception stack. Results go to OUT/results.jsonl "
+        "(one line per episode, appended as episodes finish); an interrupted run continues with --resume.",
+        epilog="examples:\n  cfharness run --suite search --agent map-navigator --agent frame-searcher --encoder oracle\n"
+        "  cfharness run --suite rearrange --limit 10 --backend serial\n"
+        "  cfharness run --suite search --agent mypkg.agents:MyAgent\n"
+        "  cfharness run --backend ray --address auto\n  cfharness run --out runs/main --resume",
+        formatter_class=argparse.RawDescriptionHelpFormatter,
+    )
+    run.add_argument("--suite", action="append", help=f"suite to run, repeatable (choices: {', '.join(SUITES)})")
+    run.add_argument("--agent", action="append", help="agent name or 'module:Class', repeatable (default: the suite's agents)")
+    run.add_argument("--agent-option", action="append", metavar="KEY=VALUE", help="option for agents that accept it, repeatable")
+    run.add_argument("--encoder", default="embedded", help="perception for map agents and map suites: embedded (default), oracle (privileged), hf:..., onnx:DIR")
+    run.add_argument("--limit", type=int, help="first N episodes / scenes per suite")
+    run.add_argument("--seed", type=int, default=0, help="episode seed (default 0)")
+    run.add_argument("--backend", default="process", choices=BACKENDS, help="where episodes run (default: process pool)")
+    run.add_argument("--workers", type=int, help="worker processes / Ray CPUs (default: CPU count)")
+    run.add_argument("--address", help="Ray cluster address for --backend ray (default: start a local instance)")
+    run.add_argument("--timeout", type=float, help="seconds per episode before it is recorded as timeout")
+    run.add_argument("--out", default="runs/main", help="run folder (default: runs/main)")
+    run.add_argument("--resume", action="store_true", help="finish an interrupted run in --out")
+    run.add_argument("--no-report", action="store_true", help="skip writing the report")
+    run.set_defaults(func=cmd_run)
+
+    cmp_ = sub.add_parser("compare", help="paired comparison of two agents on the same episodes")
+    cmp_.add_argument("runs", nargs="+", help="run folders")
+    cmp_.add_argument("--a", required=True, help="agent label A")
+    cmp_.add_argument("--b", required=True, help="agent label B")
+    cmp_.add_argument("--metric", default="success")
+    cmp_.add_argument("--suite")
+    cmp_.set_defaults(func=cmd_compare)
+
+    rep = sub.add_parser("report", help="write the Markdown report (tables, CIs, plots) for run folders")
+    rep.add_argument("runs", nargs="+", help="run folders")
+    rep.add_argument("--out", help="report folder (default: RUN/report)")
+    rep.set_defaults(func=cmd_report)
+
+    lst = sub.add_parser("list", help="list suites, agents and encoders")
+    lst.set_defaults(func=cmd_list)

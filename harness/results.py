@@ -1,0 +1,376 @@
+"""The results store of an evaluation run: one JSON record per episode in ``results.jsonl``.
+
+A record (one line, one JSON object)::
+
+    {"format": "cf-results", "version": 1, "run_id": "...", "suite": "...", "task": "...",
+     "agent": "map-navigator", "agent_kwargs": {"integrate_every": 3}, "encoder": "...",
+     "episode_id": "...", "seed": 0, "status": "ok" | "failed" | "timeout", "error": null,
+     "metrics": {"success": true, "spl": 0.71, ...}, "timings": {"wall_s": 3.2, ...},
+     "category": "mug" | null, "extras": {...}, "harness_version": "0.1.0",
+     "finished_at": "2025-01-01T00:00:00+00:00"}
+
+Crash safety: :func:`append_record` writes each line with one ``os.write`` on an ``O_APPEND``
+descriptor and fsyncs it, so a killed writer loses at most the line it was writing. Such a
+half-written last line is skipped (with a warning) by :func:`load_results` and cut off by
+:func:`repair_results` before a resumed run appends.
+
+The run's settings live next to the results in ``run.json`` (:func:`write_run_config`), so a
+resumed run can check that it continues the same run.
+"""
+
+from __future__ import annotations
+
+import json
+import math
+import os
+import warnings
+from dataclasses import dataclass
+from datetime import datetime, timezone
+from pathlib import Path
+
+from conceptfusion.io_utils import atomic_write_bytes, atomic_write_text
+
+__all__ = [
+    "RESULTS_FORMAT", "RESULTS_VERSION", "RUN_CONFIG_FORMAT", "RUN_CONFIG_VERSION", "RESULTS_FILE", "RUN_CONFIG_FILE",
+    "STATUSES", "ResultsFormatError", "EpisodeKey", "agent_label", "record_key", "make_record", "append_record",
+    "load_results", "repair_results", "completed_keys", "latest_records", "write_run_config", "read_run_config",
+    "check_run_config", "harness_version",
+]
+
+RESULTS_FORMAT = "cf-results"
+RESULTS_VERSION = 1
+RUN_CONFIG_FORMAT = "cf-run"
+RUN_CONFIG_VERSION = 1
+RESULTS_FILE = "results.jsonl"
+"""Name of the results file inside a run folder."""
+RUN_CONFIG_FILE = "run.json"
+"""Name of the run-settings file inside a run folder."""
+STATUSES = ("ok", "failed", "timeout")
+
+_REQUIRED = {
+    "run_id": str, "suite": str, "task": str, "agent": str, "encoder": str, "episode_id": str, "seed": int,
+    "status": str,
+}
+_OPTIONAL = {
+    "agent_kwargs": (dict, dict), "error": ((str, type(None)), lambda: None), "metrics": (dict, dict),
+    "timings": (dict, dict), "category": ((str, type(None)), lambda: None), "extras": (dict, dict),
+}
+_KEY_FIELDS = ("suite", "agent", "encoder", "episode_id", "seed")
+
+
+class ResultsFormatError(ValueError):
+    """A results or run-settings file is corrupt, of another format or of a newer version, or a
+    resumed run's settings differ from the stored ones."""
+
+
+@dataclass(frozen=True)
+class EpisodeKey:
+    """Identifies one episode run, for resuming and for pairing agents.
+
+    ``agent`` is the agent label (:func:`agent_label`): name plus its non-encoder arguments.
+    """
+
+    suite: str
+    agent: str
+    encoder: str
+    episode_id: str
+    seed: int
+
+
+def _format_value(value) -> str:
+    if isinstance(value, str):
+        return value
+    return json.dumps(value, sort_keys=True, separators=(",", ":"))
+
+
+def agent_label(agent: str, agent_kwargs: dict | None = None) -> str:
+    """Agent name plus its arguments other than ``encoder``, sorted by name.
+
+    ``agent_label("map-navigator", {"integrate_every": 3, "encoder": "x"})`` is
+    ``"map-navigator[integrate_every=3]"``; without such arguments it is the bare name.
+    """
+    if not isinstance(agent, str):
+        raise TypeError(f"agent: expected a str, got {type(agent).__name__}")
+    kwargs = {} if agent_kwargs is None else agent_kwargs
+    if not isinstance(kwargs, dict):
+        raise TypeError(f"agent_kwargs: expected a dict, got {type(kwargs).__name__}")
+    parts = [f"{k}={_format_value(v)}" for k, v in sorted(kwargs.items()) if k != "encoder"]
+    return f"{agent}[{','.join(parts)}]" if parts else agent
+
+
+def record_key(record: dict) -> EpisodeKey:
+    """The :class:`EpisodeKey` of a record (``KeyError``-free: a missing field is a ``ResultsFormatError``)."""
+    missing = [k for k in _KEY_FIELDS if k not in record]
+    if missing:
+        raise ResultsFormatError(f"record: missing field(s) {missing}; got fields {sorted(record)}")
+    return EpisodeKey(
+        str(record["suite"]), agent_label(record["agent"], record.get("agent_kwargs") or {}), str(record["encoder"]),
+        str(record["episode_id"]), int(record["seed"]),
+    )
+
+
+def harness_version() -> str:
+    """Installed version of the ``conceptfusion-harness`` distribution, or ``"0+unknown"``."""
+    from importlib.metadata import PackageNotFoundError, version
+
+    try:
+        return version("conceptfusion-harness")
+    except PackageNotFoundError:
+        return "0+unknown"
+
+
+def _clean_metrics(metrics: dict) -> dict:
+    out = {}
+    for name, value in metrics.items():
+        if not isinstance(name, str):
+            raise TypeError(f"metrics: expected str names, got {name!r}")
+        if value is None or isinstance(value, bool):
+            out[name] = value
+        elif isinstance(value, (int, float)) or hasattr(value, "item"):
+            v = value.item() if hasattr(value, "item") else value
+            if isinstance(v, bool):
+                out[name] = v
+            elif not isinstance(v, (int, float)):
+                raise TypeError(f"metrics[{name!r}]: expected a number, bool or None, got {type(value).__name__}")
+            else:
+                out[name] = v if math.isfinite(v) else None
+        else:
+            raise TypeError(f"metrics[{name!r}]: expected a number, bool or None, got {type(value).__name__}")
+    return out
+
+
+def make_record(**fields) -> dict:
+    """Build and validate one results record.
+
+    Required: ``run_id, suite, task, agent, encoder, episode_id`` (str), ``seed`` (int),
+    ``status`` (one of :data:`STATUSES`). Optional: ``agent_kwargs, metrics, timings, extras``
+    (dict, default empty), ``error, category`` (str or None). ``format``, ``version``,
+    ``harness_version`` and ``finished_at`` (UTC ISO 8601) are filled in. Metric values must be
+    numbers, bools or None; NaN and infinities are stored as None (JSON has no NaN). numpy
+    scalars are converted. The record must be JSON-serialisable.
+
+    Raises ``TypeError``/``ValueError`` naming the field, what was expected and what arrived.
+    """
+    unknown = set(fields) - set(_REQUIRED) - set(_OPTIONAL) - {"format", "version", "harness_version", "finished_at"}
+    if unknown:
+        raise ValueError(f"make_record: unknown field(s) {sorted(unknown)}; expected some of "
+                         f"{sorted(set(_REQUIRED) | set(_OPTIONAL))}")
+    missing = [k for k in _REQUIRED if k not in fields]
+    if missing:
+        raise ValueError(f"make_record: missing required field(s) {missing}")
+    if fields.get("format", RESULTS_FORMAT) != RESULTS_FORMAT or fields.get("version", RESULTS_VERSION) != RESULTS_VERSION:
+        raise ValueError(f"make_record: format/version must be {RESULTS_FORMAT!r}/{RESULTS_VERSION}, got "
+                         f"{fields.get('format')!r}/{fields.get('version')!r}")
+    rec = {"format": RESULTS_FORMAT, "version": RESULTS_VERSION}
+    for name, kind in _REQUIRED.items():
+        value = fields[name]
+        if kind is int and hasattr(value, "item") and not isinstance(value, bool):
+            value = value.item()  # numpy integer
+        if not isinstance(value, kind) or (kind is int and isinstance(value, bool)):
+            raise TypeError(f"make_record: {name} expected {kind.__name__}, got {type(value).__name__} ({value!r})")
+        rec[name] = value
+    if rec["status"] not in STATUSES:
+        raise ValueError(f"make_record: status expected one of {STATUSES}, got {rec['status']!r}")
+    for name, (kind, default) in _OPTIONAL.items():
+        value = fields.get(name, default())
+        if not isinstance(value, kind):
+            raise TypeError(f"make_record: {name} expected {kind}, got {type(value).__name__} ({value!r})")
+        rec[name] = dict(value) if isinstance(value, dict) else value
+    rec["metrics"] = _clean_metrics(rec["metrics"])
+    for name, value in rec["timings"].items():
+        if isinstance(value, bool) or not isinstance(value, (int, float)):
+            raise TypeError(f"make_record: timings[{name!r}] expected a float, got {type(value).__name__}")
+        rec["timings"][name] = float(value)
+    rec["harness_version"] = str(fields.get("harness_version") or harness_version())
+    rec["finished_at"] = str(fields.get("finished_at") or datetime.now(timezone.utc).isoformat(timespec="seconds"))
+    try:
+        json.dumps(rec, allow_nan=False)
+    except (TypeError, ValueError) as exc:
+        raise TypeError(f"make_record: record is not JSON-serialisable: {exc}") from exc
+    return rec
+
+
+def append_record(path: str | os.PathLike, record: dict) -> None:
+    """Append one record as one line: a single ``os.write`` on an ``O_APPEND`` descriptor, then fsync.
+
+    Creates missing parent folders. Safe for one writer process. Raises ``ResultsFormatError``
+    when the file ends with a half-written line (call :func:`repair_results` first), so a new
+    record is never glued onto a broken one.
+    """
+    if not isinstance(record, dict):
+        raise TypeError(f"record: expected a dict, got {type(record).__name__}")
+    data = (json.dumps(record, allow_nan=False, separators=(",", ":")) + "\n").encode("utf-8")
+    p = Path(path)
+    p.parent.mkdir(parents=True, exist_ok=True)
+    fd = os.open(p, os.O_WRONLY | os.O_APPEND | os.O_CREAT, 0o666)
+    try:
+        size = os.fstat(fd).st_size
+        if size > 0:
+            with open(p, "rb") as f:
+                f.seek(size - 1)
+                if f.read(1) != b"\n":
+                    raise ResultsFormatError(f"{p}: ends with a half-written line; call repair_results({str(p)!r}) "
+                                             "before appending")
+        written = os.write(fd, data)
+        while written < len(data):  # a regular file takes the whole line at once; this is a safety net
+            written += os.write(fd, data[written:])
+        os.fsync(fd)
+    finally:
+        os.close(fd)
+
+
+def _check_header(rec, where: str) -> None:
+    if not isinstance(rec, dict):
+        raise ResultsFormatError(f"{where}: expected a JSON object, got {type(rec).__name__}")
+    fmt, version = rec.get("format"), rec.get("version")
+    if fmt != RESULTS_FORMAT:
+        raise ResultsFormatError(f"{where}: not a results record: format {fmt!r}, expected {RESULTS_FORMAT!r}")
+    if isinstance(version, bool) or not isinstance(version, int) or version < 1:
+        raise ResultsFormatError(f"{where}: bad version {version!r}; this code reads versions 1..{RESULTS_VERSION}")
+    if version > RESULTS_VERSION:
+        raise ResultsFormatError(f"{where}: written by results format version {version}, newer than the supported "
+                                 f"version {RESULTS_VERSION}; upgrade conceptfusion-harness")
+
+
+def _scan(data: bytes, where: str, strict: bool) -> tuple[list[dict], int]:
+    """Parse the complete lines; return the records and the byte length of the good prefix."""
+    records: list[dict] = []
+    lines = data.split(b"\n")
+    complete_end = len(data) - len(lines[-1])  # bytes up to and including the last newline
+    body, tail = lines[:-1], lines[-1]
+    offset = 0
+    good_end = 0
+    for i, raw in enumerate(body, start=1):
+        offset += len(raw) + 1
+        if not raw.strip():
+            good_end = offset
+            continue
+        try:
+            rec = json.loads(raw)
+        except (json.JSONDecodeError, UnicodeDecodeError) as exc:
+            if i == len(body) and not tail.strip():
+                warnings.warn(f"{where}: line {i}: skipping a half-written last line ({exc})", stacklevel=3)
+                return records, good_end
+            if strict:
+                raise ResultsFormatError(f"{where}: line {i}: corrupt record: {exc}") from exc
+            warnings.warn(f"{where}: line {i}: skipping a corrupt record ({exc})", stacklevel=3)
+            good_end = offset
+            continue
+        _check_header(rec, f"{where}: line {i}")
+        records.append(rec)
+        good_end = offset
+    if tail.strip():
+        warnings.warn(f"{where}: line {len(body) + 1}: skipping a half-written last line (no newline)", stacklevel=3)
+    elif good_end == complete_end:
+        good_end = len(data)  # keep trailing whitespace after the last newline
+    return records, good_end
+
+
+def load_results(path: str | os.PathLike, *, strict: bool = False) -> list[dict]:
+    """Records of a ``results.jsonl`` file, in file order; a missing file gives ``[]``.
+
+    A last line without newline, or a last line that is not valid JSON, is what a killed writer
+    leaves: it is skipped with a warning naming file and line. A corrupt line elsewhere is
+    skipped with a warning by default and raises ``ResultsFormatError`` (file and line) when
+    ``strict``. A record of another format or of a version newer than :data:`RESULTS_VERSION`
+    always raises ``ResultsFormatError`` naming the version found and the one supported.
+    """
+    p = Path(path)
+    if not p.exists():
+        return []
+    records, _ = _scan(p.read_bytes(), str(p), strict)
+    return records
+
+
+def repair_results(path: str | os.PathLike) -> int:
+    """Cut a half-written last line off a results file (atomic rewrite); returns the bytes removed.
+
+    A missing or healthy file is left alone (returns 0). Corrupt lines elsewhere are kept (they
+    are not the signature of a killed writer; :func:`load_results` reports them).
+    """
+    p = Path(path)
+    if not p.exists():
+        return 0
+    data = p.read_bytes()
+    with warnings.catch_warnings():
+        warnings.simplefilter("ignore")
+        _, good_end = _scan(data, str(p), strict=False)
+    if good_end == len(data):
+        return 0
+    atomic_write_bytes(p, data[:good_end])
+    return len(data) - good_end
+
+
+def completed_keys(records, *, statuses: tuple[str, ...] = STATUSES) -> set[EpisodeKey]:
+    """Keys of the episodes already run, for resuming.
+
+    By default every recorded status counts as done: a failed or timed-out episode is recorded
+    as such and not retried (a deterministic agent would fail again). Pass
+    ``statuses=("ok",)`` to retry them; :func:`latest_records` then keeps the newer record.
+    """
+    return {record_key(r) for r in records if r.get("status") in statuses}
+
+
+def latest_records(records) -> list[dict]:
+    """One record per :class:`EpisodeKey`, the last one in order (a retried episode's newest run)."""
+    by_key: dict[EpisodeKey, dict] = {}
+    for r in records:
+        key = record_key(r)
+        by_key.pop(key, None)
+        by_key[key] = r
+    return list(by_key.values())
+
+
+def _normalise_config(config: dict) -> dict:
+    if not isinstance(config, dict):
+        raise TypeError(f"config: expected a dict, got {type(config).__name__}")
+    try:
+        return json.loads(json.dumps(config, sort_keys=True, allow_nan=False))
+    except (TypeError, ValueError) as exc:
+        raise TypeError(f"config: expected JSON-serialisable settings: {exc}") from exc
+
+
+def read_run_config(run_dir: str | os.PathLike) -> dict:
+    """The settings stored by :func:`write_run_config`; ``FileNotFoundError`` when there are none."""
+    p = Path(run_dir) / RUN_CONFIG_FILE
+    if not p.exists():
+        raise FileNotFoundError(f"{p}: no run settings here; is {run_dir} a run folder?")
+    try:
+        doc = json.loads(p.read_text())
+    except json.JSONDecodeError as exc:
+        raise ResultsFormatError(f"{p}: corrupt run settings at line {exc.lineno}: {exc.msg}") from exc
+    if not isinstance(doc, dict) or doc.get("format") != RUN_CONFIG_FORMAT:
+        got = doc.get("format") if isinstance(doc, dict) else type(doc).__name__
+        raise ResultsFormatError(f"{p}: not run settings: format {got!r}, expected {RUN_CONFIG_FORMAT!r}")
+    version = doc.get("version")
+    if not isinstance(version, int) or isinstance(version, bool) or not 1 <= version <= RUN_CONFIG_VERSION:
+        raise ResultsFormatError(f"{p}: run settings version {version!r}; this code reads versions "
+                                 f"1..{RUN_CONFIG_VERSION}")
+    if not isinstance(doc.get("config"), dict):
+        raise ResultsFormatError(f"{p}: expected a 'config' object, got {type(doc.get('config')).__name__}")
+    return doc["config"]
+
+
+def check_run_config(run_dir: str | os.PathLike, config: dict) -> None:
+    """Raise ``ResultsFormatError`` listing the settings that differ from the stored ones."""
+    stored, new = read_run_config(run_dir), _normalise_config(config)
+    if stored == new:
+        return
+    diffs = [f"{k}: stored {stored.get(k, '<absent>')!r}, now {new.get(k, '<absent>')!r}"
+             for k in sorted(set(stored) | set(new)) if stored.get(k, ...) != new.get(k, ...)]
+    raise ResultsFormatError(f"{Path(run_dir) / RUN_CONFIG_FILE}: this run was started with other settings; "
+                             f"{'; '.join(diffs)}")
+
+
+def write_run_config(run_dir: str | os.PathLike, config: dict, *, overwrite: bool = False) -> Path:
+    """Store a run's settings in ``run_dir/run.json`` (atomic, versioned); returns its path.
+
+    When the file exists with different settings this raises ``ResultsFormatError`` (a resumed
+    run must continue the same run) unless ``overwrite``. ``config`` must be JSON-serialisable.
+    """
+    norm = _normalise_config(config)
+    p = Path(run_dir) / RUN_CONFIG_FILE
+    if p.exists() and not overwrite:
+        check_run_config(run_dir, norm)
+    doc = {"format": RUN_CONFIG_FORMAT, "version": RUN_CONFIG_VERSION, "config": norm}
+    return atomic_write_text(p, json.dumps(doc, indent=1, sort_keys=True) + "\n")

@@ -1,0 +1,109 @@
+"""Map suites: jobs, records, and the figures that must hold with privileged (oracle) features."""
+
+from __future__ import annotations
+
+import numpy as np
+import pytest
+
+from harness.map_ablation import segmentation_scores
+from harness.map_query import iou
+from harness.map_scan import load_shipped_scene, point_labels, scan_scene
+from harness.map_spatial import QUESTION_TYPES, distance_ok, generate_questions
+from harness.map_suites import MapJob, map_suite_jobs, run_map_job
+from harness.results import record_key
+from harness.run import RunConfig
+
+TABLETOP = "tabletop-0111"
+HOUSEHOLD = "household-0000"
+
+
+def _job(suite, agent, encoder, scene, tmp_path=None, **options):
+    return MapJob(run_id="t", suite=suite, agent=agent, encoder=encoder, scene_id=scene, options=options,
+                  out_dir=None if tmp_path is None else str(tmp_path))
+
+
+def test_iou_and_segmentation_scores_by_hand():
+    assert iou(np.array([1, 1, 0, 0], bool), np.array([0, 1, 1, 0], bool)) == pytest.approx(1 / 3)
+    assert iou(np.zeros(3, bool), np.zeros(3, bool)) == 0.0
+    # classes 0 (3 points) and 1 (1 point); one class-0 point predicted 1, one not predicted
+    s = segmentation_scores(np.array([0, 1, -1, 1]), np.array([0, 0, 0, 1]), 2)
+    assert s["macc"] == pytest.approx((1 / 3 + 1) / 2)
+    assert s["fmiou"] == pytest.approx(0.75 * (1 / 3) + 0.25 * (1 / 2))
+    with pytest.raises(ValueError, match=r"expected true labels in \[0, 2\)"):
+        segmentation_scores(np.array([0]), np.array([2]), 2)
+
+
+def test_point_labels_prefer_the_smaller_box_and_skip_the_support_surface():
+    boxes = np.array([[[0, 0, 0], [1, 1, 1]], [[0.2, 0.2, 0.2], [0.4, 0.4, 0.4]]], float)
+    pts = np.array([[0.5, 0.5, 0.5], [0.3, 0.3, 0.3], [0.5, 0.5, 0.001], [2, 2, 2]])
+    assert point_labels(pts, boxes).tolist() == [0, 1, -1, -1]
+
+
+def test_query_record_is_well_formed_and_writes_a_heatmap(tmp_path):
+    job = _job("query", "conceptfusion", "color", TABLETOP, tmp_path, frames=6, width=96, height=72)
+    (rec,) = run_map_job(job)
+    assert rec["status"] == "ok", rec["error"]
+    assert (rec["task"], rec["agent"], rec["episode_id"], rec["encoder"]) == ("map_query", "conceptfusion", TABLETOP, "color")
+    assert record_key(rec) == record_key(job.key_record())
+    for m in ("text", "image", "click"):
+        assert 0.0 <= rec["metrics"][f"{m}_miou"] <= 1.0
+        assert rec["metrics"][f"{m}_acc25"] <= rec["metrics"][f"{m}_acc15"]
+    assert rec["metrics"]["n_objects"] + rec["metrics"]["n_skipped"] == len(load_shipped_scene(TABLETOP).objects)
+    heat = np.load(tmp_path / rec["extras"]["heatmap_npz"])
+    assert heat["points"].shape == (rec["metrics"]["map_points"], 3) and heat["values"].shape == (rec["metrics"]["map_points"],)
+
+
+def test_oracle_text_queries_find_the_objects():
+    (rec,) = run_map_job(_job("query", "conceptfusion", "oracle", TABLETOP, frames=8, width=128, height=96))
+    m = rec["metrics"]
+    assert rec["status"] == "ok", rec["error"]
+    assert m["text_miou"] > 0.5 and m["text_acc25"] > 0.7
+    assert m["click_miou"] > 0.5
+    assert m["image_miou"] is None  # the oracle has no image tower
+    assert m["absent_fp_rate"] == 0.0
+
+
+def test_ablation_full_beats_global_with_ground_truth_masks():
+    opts = {"frames": 6, "width": 96, "height": 72, "proposer": "gt"}
+    recs = {v: run_map_job(_job("ablation", v, "color", TABLETOP, **opts))[0] for v in ("global", "full")}
+    assert all(r["status"] == "ok" for r in recs.values())
+    assert recs["full"]["metrics"]["macc"] > recs["global"]["metrics"]["macc"]
+    assert recs["full"]["task"] == "map_ablation" and recs["full"]["extras"]["privileged"] is True
+
+
+def test_question_generation_gives_every_type():
+    scene = load_shipped_scene(HOUSEHOLD)
+    scan = scan_scene(scene, frames=24, width=160, height=120)
+    qs = generate_questions(scan, seed=0)
+    assert {q["type"] for q in qs} == set(QUESTION_TYPES)
+    assert qs == generate_questions(scan, seed=0)
+    assert all(isinstance(q["gt"], bool) for q in qs if q["type"] != "distance")
+    assert any(q["gt"] is True for q in qs if q["type"] == "support") and any(q["gt"] is False for q in qs if q["type"] == "support")
+
+
+def test_spatial_3d_map_answers_at_least_as_well_as_a_single_frame():
+    opts = {"frames": 24, "width": 160, "height": 120}
+    recs = {a: run_map_job(_job("spatial", a, "oracle", HOUSEHOLD, **opts))[0] for a in ("map-3d", "frame-2.5d")}
+    m3, m25 = recs["map-3d"]["metrics"], recs["frame-2.5d"]["metrics"]
+    assert recs["map-3d"]["task"] == "spatial_qa"
+    assert m3["accuracy"] >= m25["accuracy"]
+    assert m3["notfound_rate"] <= m25["notfound_rate"]
+    dist = [q for q in recs["map-3d"]["extras"]["questions"] if q["type"] == "distance"]
+    assert dist and sum(distance_ok(q["answer"], q["gt"]) for q in dist) >= 0.75 * len(dist)
+
+
+def test_jobs_per_suite_and_bad_names():
+    cfg = RunConfig(suites=("query",), encoder="color", limit=2, agent_kwargs={"frames": 6, "integrate_every": 3})
+    q = map_suite_jobs("query", cfg, "r")
+    assert [j.scene_id for j in q] == ["tabletop-0111", "tabletop-0129"] and q[0].options == {"frames": 6}
+    assert len(map_suite_jobs("ablation", cfg, "r")) == 2 * 4
+    spatial = map_suite_jobs("spatial", cfg, "r")
+    assert len(spatial) == (2 + 2) * 2 and {j.agent for j in spatial} == {"map-3d", "frame-2.5d"}
+    assert len({record_key(j.key_record()) for j in spatial}) == len(spatial)
+    with pytest.raises(ValueError, match=r"unknown map suite 'querry'; did you mean 'query'"):
+        map_suite_jobs("querry", cfg, "r")
+
+
+def test_a_broken_job_becomes_a_failed_record():
+    (rec,) = run_map_job(_job("query", "conceptfusion", "color", "tabletop-9999"))
+    assert rec["status"] == "failed" and "no shipped scene 'tabletop-9999'" in rec["error"]
