@@ -68,11 +68,15 @@ class PusherConfig:
     """Settings of :class:`MapPusher`."""
 
     margin: float = 0.07
-    """Push until the object's median is this far past the line (success needs 2 cm)."""
+    """Push until the object's centre is this far past the line (success needs 2 cm)."""
+    done_margin: float = 0.035
+    """An object whose centre is this far past the line in the map needs no more pushing."""
     approach_clearance: float = 0.04
     """The fingertip starts this far behind the object's back."""
-    attempts_per_object: int = 2
+    attempts_per_object: int = 3
     """Pushes per object (the first plus retries)."""
+    finger_radius: float = 0.015
+    """Radius of the environment's fingertip (m)."""
     corridor_half_width: float = 0.03
     """Extra half-width (m) of the swept corridor checked for other objects."""
     tilts_deg: tuple[float, ...] = (0.0, 20.0, -20.0, 35.0, -35.0)
@@ -126,6 +130,14 @@ class MapPusher:
         across = np.abs(rel @ np.array([-d[1], d[0]]))
         return not np.any((along > -0.02) & (along < length) & (across < half_width))
 
+    def _table_xy(self, table_z: float) -> np.ndarray:
+        """(2, 2) lower and upper corner of the table top, from the map points at its height."""
+        pts = self.mapper.map.points
+        top = pts[np.abs(pts[:, 2] - table_z) < 0.01][:, :2]
+        if len(top) < 20:
+            return np.array([[-np.inf, -np.inf], [np.inf, np.inf]])
+        return np.percentile(top, [0.5, 99.5], axis=0)
+
     def act(self, observation, info: dict | None = None) -> np.ndarray:
         if self._targets is None:
             self._targets = parse_push_instruction(str(observation["instruction"]))
@@ -134,9 +146,15 @@ class MapPusher:
         line_dir = line[1] - line[0]
         view = np.asarray(observation["cam_to_world"], np.float64)[:3, 2]
         table_z = self._table_z()
+        table_lo, table_hi = self._table_xy(table_z)
         pts = self.mapper.map.points
         above = pts[:, 2] > table_z + 0.012
         c = self.config
+
+        def on_table(xy, inset: float) -> bool:
+            return bool(np.all(xy >= table_lo + inset) and np.all(xy <= table_hi - inset))
+
+        fallbacks = []  # (name, side, push) with a blocked corridor: tried after every clear push
         for name, side in self._targets:
             res = self.mapper.locate(name)
             if not res.found:
@@ -147,13 +165,17 @@ class MapPusher:
             if len(obj_pts) < 5:
                 obj_pts = region.points_n3
             centre = region.median
+            # The push goes through the middle of the object's footprint: a finger that hits a
+            # round object off its centre line rolls it sideways (the median of the visible
+            # surface can sit a centimetre off it).
+            lo, hi = np.percentile(obj_pts[:, :2], [5, 95], axis=0)
+            centre = np.array([(lo[0] + hi[0]) / 2, (lo[1] + hi[1]) / 2, centre[2]])
             plan = plan_push(centre, line[0], line_dir, side, view_dir=view, footprint_xy=obj_pts[:, :2], margin=c.margin, approach_clearance=c.approach_clearance)
-            if plan.already_on_side:
+            if plan.signed_distance >= c.done_margin:
                 continue
             if self._attempts.get(name, 0) >= c.attempts_per_object:
                 self.log.append(f"'{name}' still not past the line after {c.attempts_per_object} pushes: giving up on it")
                 continue
-            self._attempts[name] = self._attempts.get(name, 0) + 1
             # Points of other things on the table (not this region) block a corridor.
             mine = np.zeros(len(pts), bool)
             mine[region.indices_n] = True
@@ -162,21 +184,38 @@ class MapPusher:
             extent = np.ptp(obj_pts[:, :2], axis=0).max() / 2 if len(obj_pts) > 1 else 0.03
             normal = plan.push_direction[:2]
             base = math.atan2(normal[1], normal[0])
-            choice = None
+            choice = fallback = None
             for tilt in c.tilts_deg:
                 ang = base + math.radians(tilt)
                 d = np.array([math.cos(ang), math.sin(ang)])
                 cos_t = max(float(d @ normal), 0.3)
                 back = float(np.max(-(obj_pts[:, :2] - centre[:2]) @ d)) if len(obj_pts) else extent
-                start = centre[:2] - (back + c.approach_clearance) * d
-                dist = c.approach_clearance + plan.push_distance / cos_t
+                start = centre[:2] - (back + c.finger_radius + c.approach_clearance) * d
+                travel = plan.push_distance / cos_t
+                dist = c.approach_clearance + travel
+                if not (on_table(start, 0.005) and on_table(centre[:2] + travel * d, extent * 0.5)):
+                    continue  # the finger must come down on the table and the object stay on it
+                if len(others) and np.min(np.linalg.norm(others - start, axis=1)) < c.finger_radius + 0.01:
+                    continue  # the finger would come down on another object
+                if fallback is None:
+                    fallback = (start, ang, dist)
                 if self._corridor_clear(start, ang, dist + 2 * back, extent + c.corridor_half_width, others):
                     choice = (start, ang, dist)
                     break
-            if choice is None:
-                start = plan.pre_push_xyz[:2]
-                choice = (start, base, c.approach_clearance + plan.push_distance)
-                self.log.append(f"'{name}': no clear corridor, pushing straight")
-            self.log.append(f"push '{name}' to the {side}: start {np.round(choice[0], 3).tolist()}, dir {math.degrees(choice[1]):.0f} deg, {choice[2]:.2f} m")
-            return push_action(choice[0], choice[1], min(choice[2], 0.5))
+            if choice is not None:
+                return self._push(name, side, choice)
+            if fallback is not None:
+                fallbacks.append((name, side, fallback))
+            else:
+                self.log.append(f"'{name}': no push keeps the finger and the object on the table")
+        if fallbacks:
+            name, side, push = fallbacks[0]
+            self.log.append(f"'{name}': no clear corridor, pushing anyway")
+            return self._push(name, side, push)
         return push_action((0.0, 0.0), 0.0, 0.0, stop=True)
+
+    def _push(self, name: str, side: str, push: tuple) -> np.ndarray:
+        start, ang, dist = push
+        self._attempts[name] = self._attempts.get(name, 0) + 1
+        self.log.append(f"push '{name}' to the {side}: start {np.round(start, 3).tolist()}, dir {math.degrees(ang):.0f} deg, {dist:.2f} m")
+        return push_action(start, ang, min(dist, 0.5))

@@ -69,6 +69,9 @@ def build_parser() -> argparse.ArgumentParser:
     demo.add_argument("--proposer", default="rgbd", choices=("rgbd", "gt"),
                       help="mask proposer on the tabletop (default: rgbd; gt reads the simulator's segmentation)")
     demo.set_defaults(func=_cmd_demo)
+    from harness.commands import add_eval_commands
+
+    add_eval_commands(sub)
     return parser
 
 

@@ -13,7 +13,7 @@ import time
 import uuid
 from dataclasses import dataclass, field
 from pathlib import Path
-from typing import Callable, Iterable
+from typing import Callable
 
 from harness.suites import Suite, get_suite
 from harness.tasks import EpisodeJob
@@ -150,7 +150,7 @@ def run_suites(
     done = completed_keys(load_results(results))
     for suite in suites:
         if suite.kind == "maps":
-            jobs = [j for j in map_suite_jobs(suite.name, config, run_id)]
+            jobs = map_suite_jobs(suite.name, config, run_id, out_dir=run_dir)
             todo = [j for j in jobs if record_key(j.key_record()) not in done]
             bar = Progress(len(todo), suite.name) if progress and todo else None
             for job in todo:
@@ -176,6 +176,3 @@ def run_suites(
                 bar.update(f"{agent_label(rec['agent'], rec['agent_kwargs'])} {rec['episode_id']} {ok}")
     return load_results(results)
 
-
-def _iter(x: Iterable) -> list:
-    return list(x)

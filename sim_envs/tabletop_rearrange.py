@@ -80,10 +80,16 @@ class TabletopRearrangeEnv(gym.Env):
 
     **Observation** (Dict): a posed RGB-D frame from the fixed overhead-oblique camera (``rgb``
     (H, W, 3) uint8, ``depth`` (H, W) float32 metres, ``inf`` where nothing is hit, ``K`` (3, 3),
-    ``cam_to_world`` (4, 4) OpenCV) and the ``instruction`` text. No ground truth.
+    ``cam_to_world`` (4, 4) OpenCV), the ``instruction`` text and the painted ``line``'s two
+    endpoints (2, 2) (world x, y on the table top; part of the task statement, as the line is in
+    the paper's set-up). No ground truth.
 
-    **Scanning**: :meth:`scan` returns posed RGB-D frames on an orbit around the table in the
-    current state (it does not step the episode): map-equipped agents build their map from it.
+    **Scanning**: with ``scan_frames=n > 0`` every observation also carries an orbit scan of the
+    table in the current state, ``scan_rgb`` (n, h, w, 3), ``scan_depth`` (n, h, w),
+    ``scan_K`` (n, 3, 3) and ``scan_cam_to_world`` (n, 4, 4) (``h, w`` = ``scan_height,
+    scan_width``, default the observation size): what a wrist or head camera sweeping the table
+    before each push would see; map-equipped agents fuse it. :meth:`scan` returns such frames on
+    demand without stepping the episode.
 
     **Randomization**: an episode record (``episodes=`` file or set; ``reset(options={"episode":
     ...})`` or ``{"episode_index": i}``; otherwise one drawn with the reset seed) fixes the scene
@@ -102,6 +108,7 @@ class TabletopRearrangeEnv(gym.Env):
     ``object_ids``, ``object_names``, ``object_poses`` (n, 7), ``object_aabbs`` (n, 2, 3),
     ``object_sizes`` (n, 3) (box size in the object frame, base at its origin; these three are
     nested lists, since n varies between scenes and vector envs batch array-valued info),
+    ``scan_segmentation`` (n, h, w) int32 (with ``scan_frames``),
     ``target_ids``, ``target_sides``, ``line``, ``right_normal``, ``view_dir``, ``table_xy`` (2, 2)
     (lower, upper table corner), ``scene_graph`` (MuJoCo backend; ``None`` otherwise), ``last_push``,
     ``evaluation``, ``success``, ``steps``, ``episode_id``, ``scene_id``.
@@ -120,6 +127,9 @@ class TabletopRearrangeEnv(gym.Env):
         fovy_deg: float = 60.0,
         max_steps: int = 6,
         scenes_root: str | None = None,
+        scan_frames: int = 0,
+        scan_width: int | None = None,
+        scan_height: int | None = None,
         render_mode: str | None = None,
     ) -> None:
         _backend_entry(backend)  # raises naming the valid backends
@@ -127,6 +137,8 @@ class TabletopRearrangeEnv(gym.Env):
             raise ValueError(f"render_mode: expected None or 'rgb_array', got {render_mode!r}")
         if width <= 0 or height <= 0:
             raise ValueError(f"width, height: expected positive sizes, got {width}x{height}")
+        if scan_frames < 0:
+            raise ValueError(f"scan_frames: expected >= 0, got {scan_frames}")
         if max_steps < 1:
             raise ValueError(f"max_steps: expected >= 1, got {max_steps}")
         if episodes is not None and not isinstance(episodes, EpisodeSet):
@@ -144,8 +156,20 @@ class TabletopRearrangeEnv(gym.Env):
                 "K": spaces.Box(-np.inf, np.inf, (3, 3), np.float64),
                 "cam_to_world": spaces.Box(-np.inf, np.inf, (4, 4), np.float64),
                 "instruction": spaces.Text(_MAX_INSTRUCTION, min_length=1, charset=INSTRUCTION_CHARSET),
+                "line": spaces.Box(-np.inf, np.inf, (2, 2), np.float64),
             }
         )
+        self.scan_frames = int(scan_frames)
+        self.scan_width, self.scan_height = int(scan_width or width), int(scan_height or height)
+        if self.scan_frames:
+            n, sh, sw = self.scan_frames, self.scan_height, self.scan_width
+            self.observation_space = spaces.Dict({
+                **self.observation_space.spaces,
+                "scan_rgb": spaces.Box(0, 255, (n, sh, sw, 3), np.uint8),
+                "scan_depth": spaces.Box(0.0, np.inf, (n, sh, sw), np.float32),
+                "scan_K": spaces.Box(-np.inf, np.inf, (n, 3, 3), np.float64),
+                "scan_cam_to_world": spaces.Box(-np.inf, np.inf, (n, 4, 4), np.float64),
+            })
         self.sim: TabletopSim | None = None
         self.episode: Episode | None = None
         self._start_poses = None
@@ -237,13 +261,23 @@ class TabletopRearrangeEnv(gym.Env):
         f = self.sim.render(eye, target, self.width, self.height, self.fovy_deg, True)
         self._last_frame = f
         self._result = self.evaluate()
-        obs = {"rgb": f.rgb, "depth": f.depth, "K": f.K, "cam_to_world": f.cam_to_world, "instruction": self.episode.instruction}
+        obs = {"rgb": f.rgb, "depth": f.depth, "K": f.K, "cam_to_world": f.cam_to_world, "instruction": self.episode.instruction,
+               "line": np.asarray(scene.line, np.float64)[:, :2].copy()}
+        scan_seg = None
+        if self.scan_frames:
+            frames = self.scan(self.scan_frames, width=self.scan_width, height=self.scan_height, segmentation=True)
+            obs["scan_rgb"] = np.stack([fr.rgb for fr in frames])
+            obs["scan_depth"] = np.stack([fr.depth for fr in frames]).astype(np.float32)
+            obs["scan_K"] = np.stack([fr.K for fr in frames]).astype(np.float64)
+            obs["scan_cam_to_world"] = np.stack([fr.cam_to_world for fr in frames]).astype(np.float64)
+            scan_seg = np.stack([fr.segmentation for fr in frames]).astype(np.int32)
         p0, n = line_normal(scene)
         half = np.asarray(scene.table.size[:2]) / 2
         info = {
             "episode_id": self.episode.episode_id,
             "scene_id": scene.id,
             "segmentation": f.segmentation,
+            **({"scan_segmentation": scan_seg} if scan_seg is not None else {}),
             "object_ids": [o.id for o in scene.objects],
             "object_names": [o.name for o in scene.objects],
             "object_poses": self.sim.object_poses().tolist(),

@@ -33,7 +33,7 @@ def test_env_passes_the_checker():
     obs, info = env.reset(seed=2)
     assert obs["rgb"].shape == (H, W, 3) and obs["depth"].shape == (H, W)
     assert obs["instruction"].startswith("push the ") and "of the line" in obs["instruction"]
-    assert set(obs) == {"rgb", "depth", "K", "cam_to_world", "instruction"}  # no ground truth
+    assert set(obs) == {"rgb", "depth", "K", "cam_to_world", "instruction", "line"}  # no ground truth
     assert 1 <= len(info["target_ids"]) <= 2 and not info["success"]
     env.close()
 
