@@ -98,7 +98,7 @@ def episode_jobs(suite: Suite, config: RunConfig, run_id: str) -> list[EpisodeJo
     jobs = []
     for agent in agents:
         _check_agent(agent, suite)
-        kw = _agent_kwargs_for(agent, config.encoder, config.agent_kwargs)
+        kw = _agent_kwargs_for(agent, suite.encoder or config.encoder, config.agent_kwargs)
         for ep in episodes:
             jobs.append(EpisodeJob(
                 run_id=run_id, suite=suite.name, task=suite.task, agent=agent, agent_kwargs=kw, episode=ep,

@@ -46,6 +46,10 @@ class Suite:
     """Use only the first ``limit`` episodes (None: all)."""
     floors: dict = field(default_factory=dict)
     """Agent -> minimum success rate (regression suites)."""
+    encoder: str | None = None
+    """Perception pinned by the suite (None: the run's ``--encoder``). The regression suites pin
+    the privileged ``oracle`` so that their floors guard planning and control; perception has its
+    own checks (the map suites)."""
 
 
 SUITES: dict[str, Suite] = {
@@ -67,16 +71,16 @@ SUITES: dict[str, Suite] = {
         Suite("ablation", "maps", "pixel-feature ablation: global only, local only, no uniqueness, full (mAcc, f-mIoU)"),
         Suite("spatial", "maps", "spatial questions from the scene graph: 3D map vs single RGB-D frame"),
         Suite(
-            "regression-rearrange", "episodes", "pinned tabletop episodes with success floors (CI)",
+            "regression-rearrange", "episodes", "pinned tabletop episodes with success floors, oracle perception (CI)",
             task="tabletop_rearrange", episodes_file=SCENES_ROOT / "tabletop" / "episodes-v1.jsonl",
-            agents=("map-pusher", "random-pusher"), env_kwargs={"width": 128, "height": 96, "scan_frames": 6},
-            limit=4, floors={"map-pusher": 0.5, "random-pusher": 0.0},
+            agents=("map-pusher", "frame-pusher", "random-pusher"), env_kwargs={"width": 128, "height": 96, "scan_frames": 6},
+            limit=6, floors={"map-pusher": 0.66, "frame-pusher": 0.33, "random-pusher": 0.0}, encoder="oracle",
         ),
         Suite(
-            "regression-search", "episodes", "pinned household search episodes with success floors (CI)",
+            "regression-search", "episodes", "pinned household search episodes with success floors, oracle perception (CI)",
             task="object_search", episodes_file=SCENES_ROOT / "household" / "episodes-v1.jsonl",
-            agents=("map-navigator", "random-walker"), env_kwargs={"width": 96, "height": 72},
-            limit=3, floors={"map-navigator": 0.6, "random-walker": 0.0},
+            agents=("map-navigator", "frame-searcher", "random-walker"), env_kwargs={"width": 160, "height": 120},
+            limit=4, floors={"map-navigator": 0.75, "frame-searcher": 0.0, "random-walker": 0.0}, encoder="oracle",
         ),
     )
 }
