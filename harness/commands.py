@@ -31,19 +31,18 @@ def _print_summary(records: list[dict], stream=sys.stdout) -> None:
     if not rows:
         print("no results", file=stream)
         return
-    header = f"{'suite':<22} {'agent':<28} {'encoder':<10} {'n':>4} {'fail':>4}  metrics"
+    header = f"{'suite':<22} {'agent':<28} {'encoder':<10} {'n':>4} {'fail':>4} {'s/ep':>6}  metrics (mean [95% CI])"
     print(header, file=stream)
     print("-" * len(header), file=stream)
     for r in rows:
-        d = r.as_dict()
         parts = []
-        for name, m in d.get("metrics", {}).items():
-            if m.get("mean") is None:
+        for name, m in list(r.metrics.items())[:5]:
+            if m.mean is None or m.mean != m.mean:
                 continue
-            lo, hi = m.get("ci", (None, None))
-            ci = f" [{lo:.2f}, {hi:.2f}]" if lo is not None and hi is not None and lo == lo else ""
-            parts.append(f"{name} {m['mean']:.3f}{ci}")
-        print(f"{d['suite']:<22} {d['agent']:<28} {d['encoder']:<10} {d['n']:>4} {d['n_failed']:>4}  " + "; ".join(parts[:5]), file=stream)
+            ci = f" [{m.low:.2f}, {m.high:.2f}]" if m.low is not None and m.low == m.low else ""
+            parts.append(f"{name} {m.mean:.3f}{ci}")
+        wall = f"{r.wall_s:6.1f}" if r.wall_s == r.wall_s else f"{'-':>6}"
+        print(f"{r.suite:<22} {r.agent:<28} {r.encoder:<10} {r.n:>4} {r.n_failed + r.n_timeout:>4} {wall}  " + "; ".join(parts), file=stream)
 
 
 def cmd_run(args: argparse.Namespace) -> int:
@@ -57,7 +56,7 @@ def cmd_run(args: argparse.Namespace) -> int:
         config = RunConfig(
             suites=suites, agents=tuple(args.agent) if args.agent else None, encoder=args.encoder,
             agent_kwargs=_parse_kv(args.agent_option), limit=args.limit, seed=args.seed, backend=args.backend,
-            workers=args.workers, address=args.address, timeout_s=args.timeout,
+            workers=args.workers, address=args.address, timeout_s=args.timeout, plugins=tuple(args.plugin or ()),
         )
         t0 = time.monotonic()
         print(f"run {args.out}: suites {', '.join(suites)}; encoder {config.encoder}; backend {config.backend}", file=sys.stderr)
@@ -151,12 +150,15 @@ def add_eval_commands(sub) -> None:
         epilog="examples:\n  cfharness run --suite search --agent map-navigator --agent frame-searcher --encoder oracle\n"
         "  cfharness run --suite rearrange --limit 10 --backend serial\n"
         "  cfharness run --suite search --agent mypkg.agents:MyAgent\n"
+        "  cfharness run --import mypkg.register --suite rearrange --agent my-pusher\n"
         "  cfharness run --backend ray --address auto\n  cfharness run --out runs/main --resume",
         formatter_class=argparse.RawDescriptionHelpFormatter,
     )
     run.add_argument("--suite", action="append", help=f"suite to run, repeatable (choices: {', '.join(SUITES)})")
     run.add_argument("--agent", action="append", help="agent name or 'module:Class', repeatable (default: the suite's agents)")
     run.add_argument("--agent-option", action="append", metavar="KEY=VALUE", help="option for agents that accept it, repeatable")
+    run.add_argument("--import", dest="plugin", action="append", metavar="MODULE",
+                     help="import MODULE first (repeatable): a module that registers agents by name with agents.registry.register_agent")
     run.add_argument("--encoder", default="embedded", help="perception for map agents and map suites: embedded (default), oracle (privileged), hf:..., onnx:DIR")
     run.add_argument("--limit", type=int, help="first N episodes / scenes per suite")
     run.add_argument("--seed", type=int, default=0, help="episode seed (default 0)")

@@ -39,12 +39,16 @@ class RunConfig:
     workers: int | None = None
     address: str | None = None
     timeout_s: float | None = None
+    plugins: tuple[str, ...] = ()
+    """Modules imported (in every worker too) before agents are built: they register agents by
+    name with :func:`agents.registry.register_agent`."""
 
     def settings(self) -> dict:
         """The part that must match on resume (not the backend: results do not depend on it)."""
         return {
             "suites": list(self.suites), "agents": list(self.agents) if self.agents else None, "encoder": self.encoder,
             "agent_kwargs": dict(self.agent_kwargs), "limit": self.limit, "seed": self.seed,
+            **({"plugins": list(self.plugins)} if self.plugins else {}),
         }
 
 
@@ -72,13 +76,33 @@ class Progress:
         self.stream.flush()
 
 
+def import_plugins(plugins) -> None:
+    """Import the modules that register user agents; ``ValueError`` naming the one that fails."""
+    import importlib
+
+    for name in plugins or ():
+        try:
+            importlib.import_module(name)
+        except ImportError as exc:
+            raise ValueError(f"--import {name!r}: cannot import it: {exc}") from exc
+
+
 def _agent_kwargs_for(agent: str, encoder: str, extra: dict) -> dict:
-    from agents.registry import AGENTS, _load_builtin
+    import inspect
+
+    from agents.registry import AGENTS, _load_builtin, _resolve
 
     _load_builtin()
     spec = AGENTS.get(agent)
-    if spec is None:  # a user agent given by import path: pass everything
-        return dict(extra)
+    if spec is None:  # a user agent given by import path: every option, and the encoder if it takes one
+        kw = dict(extra)
+        try:
+            params = inspect.signature(_resolve(agent)).parameters
+        except (TypeError, ValueError):
+            params = {}
+        if "encoder" in params or any(p.kind is inspect.Parameter.VAR_KEYWORD for p in params.values()):
+            kw.setdefault("encoder", encoder)
+        return kw
     kw = {k: v for k, v in extra.items() if k in spec.kwargs}
     if "encoder" in spec.kwargs:
         kw["encoder"] = encoder
@@ -90,6 +114,7 @@ def episode_jobs(suite: Suite, config: RunConfig, run_id: str) -> list[EpisodeJo
     from agents.registry import make_agent  # noqa: F401  (validates agent names early below)
     from sim_envs.episodes import load_episodes
 
+    import_plugins(config.plugins)
     episodes = load_episodes(suite.episodes_file).episodes
     limit = config.limit if config.limit is not None else suite.limit
     if limit is not None:
@@ -103,6 +128,7 @@ def episode_jobs(suite: Suite, config: RunConfig, run_id: str) -> list[EpisodeJo
             jobs.append(EpisodeJob(
                 run_id=run_id, suite=suite.name, task=suite.task, agent=agent, agent_kwargs=kw, episode=ep,
                 seed=config.seed, env_kwargs=dict(suite.env_kwargs), timeout_s=float(config.timeout_s or suite.timeout_s),
+                plugins=tuple(config.plugins),
             ))
     return jobs
 

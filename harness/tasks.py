@@ -33,6 +33,8 @@ class EpisodeJob:
     seed: int = 0
     env_kwargs: dict = field(default_factory=dict)
     timeout_s: float = 600.0
+    plugins: tuple[str, ...] = ()
+    """Modules to import before the agent is built (they register user agents)."""
 
     @property
     def encoder(self) -> str:
@@ -145,6 +147,10 @@ def run_episode(job: EpisodeJob) -> dict:
     try:
         if job.task not in TASK_RUNNERS:
             raise ValueError(f"task: expected one of {sorted(TASK_RUNNERS)}, got {job.task!r}")
+        if job.plugins:
+            from harness.run import import_plugins
+
+            import_plugins(job.plugins)
         agent = make_agent(job.agent, **job.agent_kwargs)
         metrics, timings, category, extras = TASK_RUNNERS[job.task](job, agent)
         spec = AGENTS.get(job.agent)

@@ -144,3 +144,42 @@ def test_resume_refuses_other_settings(tmp_path):
                    tmp_path, resume=True, progress=False)
     with pytest.raises(FileExistsError, match="--resume"):
         run_suites(config, tmp_path, progress=False)
+
+
+PLUGIN = '''
+import numpy as np
+from agents.registry import AgentSpec, register_agent
+
+
+class StopAtOnce:
+    """Stops on its first step."""
+
+    privileged = False
+
+    def __init__(self, encoder="none"):
+        self.encoder = encoder
+
+    def reset(self, seed=None):
+        pass
+
+    def act(self, observation, info=None):
+        return np.array([0, 0, 0, 0, 1], np.float32)
+
+
+register_agent(AgentSpec("stop-at-once", StopAtOnce, "tabletop_rearrange", "stops at once", {"encoder": (str, "none")}))
+'''
+
+
+def test_user_agents_by_plugin_name_and_by_import_path_run_in_worker_processes(tmp_path, monkeypatch):
+    (tmp_path / "cf_user_plugin.py").write_text(PLUGIN)
+    monkeypatch.syspath_prepend(str(tmp_path))
+    config = RunConfig(suites=("regression-rearrange",), agents=("stop-at-once", "cf_user_plugin:StopAtOnce"), limit=1,
+                       plugins=("cf_user_plugin",), backend="process", workers=1)
+    records = run_suites(config, tmp_path / "run", progress=False)
+    assert sorted(r["agent"] for r in records) == ["cf_user_plugin:StopAtOnce", "stop-at-once"]
+    for r in records:
+        assert r["status"] == "ok", r["error"]
+        assert r["metrics"]["success"] is False and r["metrics"]["steps"] == 1
+        assert r["encoder"] == "oracle"  # the suite's pinned perception reaches agents that take an encoder
+    with pytest.raises(ValueError, match="cannot import"):
+        run_suites(RunConfig(suites=("regression-rearrange",), plugins=("no_such_plugin_module",)), tmp_path / "bad", progress=False)
