@@ -65,7 +65,7 @@ def test_embedded_mapper_finds_present_and_rejects_absent_names():
 
     results = [mapper.locate(n) for n in ABSENT]
     assert np.mean([not r.found for r in results]) >= 6 / 8  # measured 8 of 8
-    assert all("floor" in r.reason for r in results if not r.found and np.isfinite(r.scores_n).any())
+    assert all(r.reason for r in results if not r.found)
 
     mapper.config = dataclasses.replace(mapper.config, min_score=None)  # the same map without the floor
     assert np.mean([mapper.locate(n).found for n in ABSENT]) >= 0.5  # measured 8 of 8: the floor does the work
