@@ -8,10 +8,14 @@ fingertip the hand itself is part of the pusher. A push is planned before anythi
 moves: inverse kinematics with the hand pointing down is solved, in a second kinematics-only
 client, for every waypoint (above the start, the start at ``PUSH_HEIGHT``, points every 2 cm
 along the push, above the end); if any waypoint is missed by more than ``reach_tol`` the push
-is refused with a reason and the scene is untouched. Executing tracks the fingertip through
-the waypoints with joint position control while physics steps (transit above the objects, a
-vertical descent, the push at ``push_speed``, a vertical lift, a retract to the home pose),
-then steps until the objects are at rest (or ``settle_steps`` have passed).
+is refused with a reason and the scene is untouched. The two transit moves, from the current
+pose to above the start and from above the end back home, are planned in joint space with OMPL
+(RRT-Connect, :func:`planners.joint_space.plan_joint_path`) against the table and the objects'
+bounding boxes (inflated by ``clearance``) placed in the kinematics client; a transit without a
+collision-free path refuses the push. Executing follows the planned joint paths and tracks the
+fingertip in straight lines for the rest (a vertical descent, the push at ``push_speed``, a
+vertical lift) with joint position control while physics steps, then steps until the objects
+are at rest (or ``settle_steps`` have passed).
 
 Deterministic: the same scene, seed and pushes give the same final poses.
 """
@@ -42,6 +46,9 @@ _TIP_LINK = 11  # panda_grasptarget
 _FORCES = (87.0,) * 4 + (12.0,) * 3
 _BASE_YAW = math.pi / 2  # the arm faces +y
 _CONTROL_STEPS = 4  # physics steps per control waypoint
+_JOINT_LO = np.array([-2.9671, -1.8326, -2.9671, -3.0718, -2.9671, -0.0175, -2.9671])
+_JOINT_HI = np.array([2.9671, 1.8326, 2.9671, -0.0698, 2.9671, 3.7525, 2.9671])
+_CHECKED_LINKS = tuple(range(2, 12))  # links 0-1 sit on the pedestal at the table's edge
 _IK_SEEDS = (  # tried in turn when the current configuration does not lead to a solution
     HOME_JOINTS,
     (0.0, 0.3, 0.0, -2.2, 0.0, 2.5, math.pi / 4),
@@ -61,6 +68,9 @@ class PyBulletTabletop:
         push_speed: fingertip speed while pushing (m/s); transit moves go at three times this.
         reach_tol: largest inverse-kinematics position error (m) a waypoint may have.
         settle_steps: cap on physics steps spent letting objects come to rest after a push.
+        clearance: distance (m) the arm's links keep from the table and the objects' boxes on
+            the planned transit moves.
+        plan_time: OMPL time limit (s) per transit move.
     """
 
     def __init__(
@@ -73,6 +83,8 @@ class PyBulletTabletop:
         push_speed: float = 0.15,
         reach_tol: float = 0.01,
         settle_steps: int = 480,
+        clearance: float = 0.01,
+        plan_time: float = 1.0,
     ) -> None:
         import pybullet as p
         import pybullet_data
@@ -87,6 +99,9 @@ class PyBulletTabletop:
         self.push_speed = float(push_speed)
         self.reach_tol = float(reach_tol)
         self.settle_steps = int(settle_steps)
+        self.clearance, self.plan_time = float(clearance), float(plan_time)
+        self._obstacles: list[int] = []
+        self._plan_count = 0
         self._dt = float(time_step)
         self._p = p
         self.client = p.connect(p.DIRECT)
@@ -270,6 +285,57 @@ class PyBulletTabletop:
                     return
 
     # -- the primitive ----------------------------------------------------------------------
+    # -- transit planning (OMPL) ---------------------------------------------------------------
+    def _place_obstacles(self) -> None:
+        """The table top and every object's current box, static, in the kinematics client."""
+        p = self._p
+        for b in self._obstacles:
+            p.removeBody(b, physicsClientId=self._ik)
+        t = self.scene.table
+        boxes = [(np.array([*t.center[:2], t.top_z - 0.025]), np.array([t.size[0] / 2, t.size[1] / 2, 0.025]))]
+        for lo, hi in self.object_aabbs():
+            boxes.append(((lo + hi) / 2, np.maximum((hi - lo) / 2, 1e-3)))
+        self._obstacles = []
+        for centre, half in boxes:
+            col = p.createCollisionShape(p.GEOM_BOX, halfExtents=half.tolist(), physicsClientId=self._ik)
+            self._obstacles.append(p.createMultiBody(0.0, col, -1, centre.tolist(), physicsClientId=self._ik))
+
+    def arm_config_free(self, q) -> bool:
+        """True when the arm at joint angles ``q`` (7,) keeps ``clearance`` from the table and the
+        object boxes last placed by a push (links on the pedestal excluded)."""
+        p = self._p
+        self._set_twin(q)
+        for b in self._obstacles:
+            for link in _CHECKED_LINKS:
+                if p.getClosestPoints(self._twin, b, self.clearance, linkIndexA=link, physicsClientId=self._ik):
+                    return False
+        return True
+
+    def _plan_transit(self, q0, q1, label: str):
+        """An OMPL joint path from q0 to q1, (N, 7), or the reason there is none."""
+        from planners.joint_space import plan_joint_path
+
+        self._plan_count += 1
+        res = plan_joint_path(
+            np.clip(q0, _JOINT_LO, _JOINT_HI), np.clip(q1, _JOINT_LO, _JOINT_HI), _JOINT_LO, _JOINT_HI, self.arm_config_free,
+            time_limit=self.plan_time, seed=self.seed * 1000 + self._plan_count, resolution=0.02, simplify_time=self.plan_time,
+        )
+        if not res.solved:
+            return None, f"no collision-free arm motion to {label} ({res.status}: {res.reason})"
+        return np.array(res.path, dtype=np.float64), ""
+
+    def _follow(self, path_q: np.ndarray, path: list) -> bool:
+        """Drive the arm along a joint path, at most 0.03 rad per control waypoint."""
+        touched = False
+        for a, b in zip(path_q[:-1], path_q[1:]):
+            n = max(1, math.ceil(float(np.max(np.abs(b - a))) / 0.03))
+            for k in range(1, n + 1):
+                self._q = a + (b - a) * k / n
+                self._hold(self._q)
+                touched |= self._step(_CONTROL_STEPS)
+            path.append(self._tip())
+        return touched
+
     def push(self, start_xy, direction_rad: float, distance: float) -> PushOutcome:
         """Push from ``start_xy`` along world yaw ``direction_rad`` for ``distance`` metres
         (see :meth:`sim_envs.tabletop_sim.TabletopSim.push`).
@@ -303,19 +369,29 @@ class PyBulletTabletop:
         plan += [("a point along the push", p0 + (p1 - p0) * k / n_mid) for k in range(1, n_mid)]
         plan += [("the end", p1), ("above the end", np.array([*p1[:2], safe_z]))]
         q = self._q
+        solved = []
         for label, point in plan:
             q, err = self._reach(point, q)
             if err > self.reach_tol:
                 return PushOutcome(
                     False, f"the arm cannot reach {label} {point.round(3).tolist()} (IK error {100 * err:.1f} cm > {100 * self.reach_tol:.1f} cm)", False, none,
                 )
+            solved.append(q)
+        self._place_obstacles()
+        there, why = self._plan_transit(self._q, solved[0], "above the start")
+        back = None
+        if there is not None:
+            back, why = self._plan_transit(solved[-1], np.array(HOME_JOINTS), "the home pose")
+        if there is None or back is None:
+            return PushOutcome(False, why, False, none)
         path: list[np.ndarray] = [self._tip()]
         fast = 3 * self.push_speed
-        touched = self._track(path[-1], plan[0][1], fast, path)
+        touched = self._follow(there, path)
         touched |= self._track(plan[0][1], p0, fast, path)
         touched |= self._track(p0, p1, self.push_speed, path)
         touched |= self._track(p1, plan[-1][1], fast, path)
-        touched |= self._track(plan[-1][1], self.home_tip, fast, path)
+        back[0] = self._q  # start from where the lift ended
+        touched |= self._follow(back, path)
         self._settle()
         return PushOutcome(True, "", bool(touched), np.asarray(path))
 
