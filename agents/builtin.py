@@ -15,6 +15,7 @@ map-pusher         tabletop_rearrange   yes         scan -> map -> median -> pus
 frame-pusher       tabletop_rearrange   no (2.5D)   same, from the current frame only
 random-pusher      tabletop_rearrange   no          random pushes
 oracle-pusher      tabletop_rearrange   privileged  ground-truth poses (solvability check)
+oracle-searcher    object_search        privileged  ground-truth floor plan and goal (solvability check)
 map-navigator      object_search        yes         map, query, OMPL plan, pure pursuit
 frame-searcher     object_search        no (2.5D)   current frame only, reactive wandering
 random-walker      object_search        no          random velocities
@@ -90,6 +91,10 @@ register_agent(AgentSpec(
 register_agent(AgentSpec(
     "oracle-pusher", "agents.oracle_push:OraclePushAgent", "tabletop_rearrange",
     "privileged scripted pusher on ground-truth poses (proves episodes solvable)", {}, privileged=True,
+))
+register_agent(AgentSpec(
+    "oracle-searcher", "agents.oracle_search:OracleSearchAgent", "object_search",
+    "privileged scripted searcher on the ground-truth floor plan and goal box (proves episodes solvable)", {}, privileged=True,
 ))
 register_agent(AgentSpec(
     "map-navigator", _map_navigator, "object_search",

@@ -25,7 +25,7 @@ from sim_envs.mujoco_camera import MujocoRGBDCamera
 from sim_envs.mujoco_scene import build_mujoco
 from sim_envs.scene_graph import object_aabbs, scene_graph
 
-__all__ = ["ObjectSearchEnv", "geodesic_to_goal", "box_distance_xy"]
+__all__ = ["ObjectSearchEnv", "geodesic_field", "geodesic_to_goal", "box_distance_xy"]
 
 _ACTION_LOW = np.array([-0.3, -1.5, 0.0], np.float32)
 _ACTION_HIGH = np.array([0.6, 1.5, 1.0], np.float32)
@@ -37,18 +37,21 @@ def box_distance_xy(xy, lo_xy, hi_xy) -> float:
     return float(np.linalg.norm(d))
 
 
-def geodesic_to_goal(free_hw: np.ndarray, origin, cell: float, start_xy, goal_mask_hw: np.ndarray) -> float:
-    """Shortest 8-connected path length (m) over free cells from ``start_xy`` to any goal cell.
-
-    ``inf`` when no goal cell is reachable.
+def geodesic_field(free_hw: np.ndarray, goal_hw: np.ndarray, cell: float) -> np.ndarray:
+    """Shortest 8-connected path length (m) over free cells from every cell to the nearest goal
+    cell (``inf`` where no goal cell is reachable, and on blocked cells).
 
     Shape:
-        free_hw, goal_mask_hw: (H, W) bool; origin, start_xy: (2,).
+        free_hw, goal_hw: (H, W) bool; returns (H, W) float64.
     """
     h, w = free_hw.shape
     idx = np.full((h, w), -1, np.int64)
     cells = np.argwhere(free_hw)
     idx[cells[:, 0], cells[:, 1]] = np.arange(len(cells))
+    out = np.full((h, w), np.inf)
+    sources = idx[goal_hw & free_hw]
+    if len(sources) == 0:
+        return out
     rows, cols, weights = [], [], []
     for dr, dc in ((0, 1), (1, 0), (1, 1), (1, -1)):
         c0, c1 = max(0, -dc), w - max(0, dc)
@@ -58,12 +61,23 @@ def geodesic_to_goal(free_hw: np.ndarray, origin, cell: float, start_xy, goal_ma
         rows.append(a[ok]), cols.append(b[ok]), weights.append(np.full(int(ok.sum()), cell * math.hypot(dr, dc)))
     n = len(cells)
     graph = coo_matrix((np.concatenate(weights), (np.concatenate(rows), np.concatenate(cols))), shape=(n, n)).tocsr()
+    out[cells[:, 0], cells[:, 1]] = dijkstra(graph, directed=False, indices=sources, min_only=True)
+    return out
+
+
+def geodesic_to_goal(free_hw: np.ndarray, origin, cell: float, start_xy, goal_mask_hw: np.ndarray) -> float:
+    """Shortest 8-connected path length (m) over free cells from ``start_xy`` to any goal cell.
+
+    ``inf`` when no goal cell is reachable.
+
+    Shape:
+        free_hw, goal_mask_hw: (H, W) bool; origin, start_xy: (2,).
+    """
+    h, w = free_hw.shape
     r, c = (np.floor((np.asarray(start_xy) - origin) / cell).astype(int))[::-1]
-    if not (0 <= r < h and 0 <= c < w) or idx[r, c] < 0:
+    if not (0 <= r < h and 0 <= c < w) or not free_hw[r, c]:
         return math.inf
-    dist = dijkstra(graph, directed=False, indices=int(idx[r, c]))
-    goals = idx[goal_mask_hw & free_hw]
-    return float(dist[goals].min()) if len(goals) else math.inf
+    return float(geodesic_field(free_hw, goal_mask_hw, cell)[r, c])
 
 
 class ObjectSearchEnv(gym.Env):
@@ -87,8 +101,10 @@ class ObjectSearchEnv(gym.Env):
 
     **Observations** (Dict): ``rgb`` (H, W, 3) uint8, ``depth`` (H, W) float32 metres (inf: no
     hit), ``K`` (3, 3), ``cam_to_world`` (4, 4) OpenCV, ``base_pose`` (3,) x, y, yaw odometry,
-    ``goal`` text. Ground truth (segmentation, object names, the goal id, the scene graph at
-    reset) is in ``info`` only.
+    ``goal`` text. Ground truth (segmentation, object names, the goal id, the distance to the
+    goal; at reset also the scene graph, the free cells ``free_grid`` (H, W) bool with
+    ``grid_origin`` and ``grid_cell``, the goal's box ``goal_aabb`` (2, 3) and
+    ``success_distance``) is in ``info`` only.
 
     **Episodes**: pass ``options={"episode": Episode}`` to reset (the harness does, from
     ``scenes/household/episodes-v1.jsonl``), or give ``episodes`` to the constructor to pick one
@@ -193,6 +209,13 @@ class ObjectSearchEnv(gym.Env):
         self._max_steps = int(self._max_steps_override or episode.max_steps)
         obs, info = self._observe()
         info["scene_graph"] = scene_graph(self._sim)
+        # Ground truth for scoring and privileged agents, at reset only: the floor plan's free
+        # cells for the base (inflated by the robot radius), the grid's frame and the goal's box.
+        info["free_grid"] = self._free.copy()
+        info["grid_origin"] = np.asarray(self._occ.origin, np.float64).copy()
+        info["grid_cell"] = float(self._occ.cell)
+        info["goal_aabb"] = np.asarray(box, np.float64).copy()
+        info["success_distance"] = self.success_distance
         return obs, info
 
     # -- dynamics --------------------------------------------------------------------------
