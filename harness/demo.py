@@ -90,6 +90,35 @@ def _proposals(instance_hw: np.ndarray, objects: list[int], table: int) -> np.nd
     return np.stack(masks) if masks else np.zeros((0,) + instance_hw.shape, bool)
 
 
+def score_queries(fmap: PointFusionMap, encoder, truths: dict, out_dir: Path | None = None) -> list[QueryOutcome]:
+    """Query the map for every name in ``truths`` and score each answer; write the map and PLY
+    heatmaps to ``out_dir`` when given.
+
+    Args:
+        truths: query text -> ``(name, centre (3,), gt_mask (N,) bool)`` of the object it
+            names, or ``None`` for a query that names nothing in the scene (must not be found).
+    """
+    negatives = encoder.encode_text(list(NEGATIVE_PHRASES))
+    outcomes = []
+    for text, truth in truths.items():
+        result = locate(fmap, encoder.encode_text([text])[0], negatives)
+        err = iou = float("nan")
+        if truth is not None and result.found:
+            _, centre, gt = truth
+            err = float(np.linalg.norm(result.best.median - np.asarray(centre, float)))
+            sel = np.zeros(len(fmap), bool)
+            sel[result.best.indices_n] = True
+            iou = float((sel & gt).sum() / max((sel | gt).sum(), 1))
+        relev = float(np.nanmax(result.relevancy_n)) if len(fmap) else float("nan")
+        outcomes.append(QueryOutcome(text, result.found, truth[0] if truth else None, err, iou, relev))
+        if out_dir is not None:
+            export_ply(fmap, Path(out_dir) / f"query_{text.replace(' ', '_')}.ply", values_n=result.relative_n)
+    if out_dir is not None:
+        save_map(fmap, Path(out_dir) / "map.npz")
+        export_ply(fmap, Path(out_dir) / "map_rgb.ply")
+    return outcomes
+
+
 def run_demo(config: DemoConfig = DemoConfig(), out_dir: Path | None = None) -> dict:
     """Build the map, run the queries, optionally save map + PLY files; returns a summary.
 
@@ -116,26 +145,12 @@ def run_demo(config: DemoConfig = DemoConfig(), out_dir: Path | None = None) -> 
         fmap.integrate(frame.rgb_hw3, frame.depth_hw, K, pose, feats)
         t_fuse += time.perf_counter() - t1
         t_features += t1 - t0
-    negatives = encoder.encode_text(list(NEGATIVE_PHRASES))
     points = fmap.points
-    outcomes = []
+    truths = {}
     for text in config.queries:
-        result = locate(fmap, encoder.encode_text([text])[0], negatives)
-        truth = next((b for b in boxes if b.name.startswith(text + " ")), None)
-        err = iou = float("nan")
-        if truth is not None and result.found:
-            err = float(np.linalg.norm(result.best.median - np.asarray(truth.center)))
-            sel = np.zeros(len(fmap), bool)
-            sel[result.best.indices_n] = True
-            gt = points_on_box(points, truth)
-            iou = float((sel & gt).sum() / max((sel | gt).sum(), 1))
-        relev = float(np.nanmax(result.relevancy_n)) if len(fmap) else float("nan")
-        outcomes.append(QueryOutcome(text, result.found, truth.name if truth else None, err, iou, relev))
-        if out_dir is not None:
-            export_ply(fmap, Path(out_dir) / f"query_{text}.ply", values_n=result.relative_n)
-    if out_dir is not None:
-        save_map(fmap, Path(out_dir) / "map.npz")
-        export_ply(fmap, Path(out_dir) / "map_rgb.ply")
+        box = next((b for b in boxes if b.name.startswith(text + " ")), None)
+        truths[text] = None if box is None else (box.name, box.center, points_on_box(points, box))
+    outcomes = score_queries(fmap, encoder, truths, out_dir)
     return {
         "encoder": config.encoder,
         "scene": "boxes",

@@ -20,9 +20,7 @@ import numpy as np
 
 from conceptfusion.fusion import PointFusionMap
 from conceptfusion.masks import make_proposer
-from conceptfusion.persistence import export_ply, save_map
 from conceptfusion.pipeline import frame_features
-from conceptfusion.query import NEGATIVE_PHRASES, locate
 
 __all__ = ["absent_name", "points_on_object", "run_tabletop_demo"]
 
@@ -61,7 +59,7 @@ def run_tabletop_demo(config, encoder, out_dir: Path | None = None) -> dict:
 
     ``config`` is a :class:`harness.demo.DemoConfig`; the outcomes are :class:`harness.demo.QueryOutcome`.
     """
-    from harness.demo import QueryOutcome
+    from harness.demo import score_queries
     from sim_envs.assets import ASSETS, COLORS
     from sim_envs.mujoco_camera import MujocoRGBDCamera
     from sim_envs.mujoco_scene import build_mujoco
@@ -94,27 +92,13 @@ def run_tabletop_demo(config, encoder, out_dir: Path | None = None) -> dict:
     present = [(o.color, o.category) for o in scene.objects]
     absent = absent_name(present, list(COLORS), sorted({a.category for a in ASSETS.values()}))
     queries = sorted(o.name for o in scene.objects) + [absent]
-    negatives = encoder.encode_text(list(NEGATIVE_PHRASES))
     points = fmap.points
-    outcomes = []
+    truths = {}
     for text in queries:
-        result = locate(fmap, encoder.encode_text([text])[0], negatives)
-        truth = next((o for o in scene.objects if o.name == text), None)
-        err = iou = float("nan")
-        if truth is not None and result.found:
-            gt = points_on_object(points, truth)
-            center = np.asarray(truth.position, float) + np.array([0.0, 0.0, truth.size[2] / 2])
-            err = float(np.linalg.norm(result.best.median - center))
-            sel = np.zeros(len(fmap), bool)
-            sel[result.best.indices_n] = True
-            iou = float((sel & gt).sum() / max((sel | gt).sum(), 1))
-        relev = float(np.nanmax(result.relevancy_n)) if len(fmap) else float("nan")
-        outcomes.append(QueryOutcome(text, result.found, truth.name if truth else None, err, iou, relev))
-        if out_dir is not None:
-            export_ply(fmap, Path(out_dir) / f"query_{text.replace(' ', '_')}.ply", values_n=result.relative_n)
-    if out_dir is not None:
-        save_map(fmap, Path(out_dir) / "map.npz")
-        export_ply(fmap, Path(out_dir) / "map_rgb.ply")
+        obj = next((o for o in scene.objects if o.name == text), None)
+        centre = None if obj is None else np.asarray(obj.position, float) + np.array([0.0, 0.0, obj.size[2] / 2])
+        truths[text] = None if obj is None else (obj.name, centre, points_on_object(points, obj))
+    outcomes = score_queries(fmap, encoder, truths, out_dir)
     return {
         "scene": scene.id,
         "num_points": len(fmap),
