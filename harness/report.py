@@ -165,7 +165,11 @@ def _comparisons(records, suite: str, w: _Writer) -> list[str]:
     if len(pairs) > _MAX_PAIRS:
         w.skip(f"paired comparisons, suite {suite}", f"{len(pairs) - _MAX_PAIRS} of {len(pairs)} pairs left out")
         pairs = pairs[:_MAX_PAIRS]
-    metrics = [m for m in ("success", "spl") if any(m in (r.get("metrics") or {}) for r in records)] or ["success"]
+    metrics = [m for m in ("success", "spl", "accuracy", "macc", "fmiou", "text_miou")
+               if any(m in (r.get("metrics") or {}) for r in records)]
+    if not metrics:
+        w.skip(f"paired comparisons, suite {suite}", "no success, SPL, accuracy or mIoU metric to compare")
+        return []
     head = ["A", "B", "metric", "pairs", "A mean", "B mean", "A - B [95% CI]", "A only / B only", "p"]
     lines = [f"### Paired comparisons: {basis}", "",
              "Episodes paired by suite, episode id and seed; p: exact McNemar for rates, Wilcoxon signed-rank "

@@ -10,6 +10,7 @@ from __future__ import annotations
 
 import time
 import traceback
+import zlib
 from dataclasses import dataclass, field
 from typing import Any, Callable
 
@@ -17,7 +18,7 @@ import numpy as np
 
 from sim_envs.episodes import Episode
 
-__all__ = ["EpisodeJob", "run_episode", "TASK_RUNNERS", "close_cached_envs"]
+__all__ = ["EpisodeJob", "run_episode", "episode_seed", "TASK_RUNNERS", "close_cached_envs"]
 
 
 @dataclass(frozen=True)
@@ -39,6 +40,12 @@ class EpisodeJob:
     @property
     def encoder(self) -> str:
         return str(self.agent_kwargs.get("encoder", "none"))
+
+
+def episode_seed(job: EpisodeJob) -> int:
+    """The agent's seed for one episode: the run's seed mixed with the episode id, so that random
+    agents draw differently per episode and identically on every backend and re-run."""
+    return zlib.crc32(f"{job.episode.episode_id}:{job.seed}".encode()) & 0x7FFFFFFF
 
 
 _ENV_CACHE: dict[tuple, Any] = {}
@@ -79,7 +86,7 @@ def _rollout(env, agent, job: EpisodeJob, *, on_step: Callable[[dict, dict], Non
     t0 = time.perf_counter()
     obs, info = env.reset(seed=job.seed, options={"episode": job.episode})
     t_env += time.perf_counter() - t0
-    agent.reset(seed=job.seed)
+    agent.reset(seed=episode_seed(job))
     privileged = bool(getattr(agent, "privileged", False))
     if on_step:
         on_step(obs, info)
