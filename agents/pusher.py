@@ -3,11 +3,15 @@
 Each step the pusher maps the table from the posed RGB-D frames in its observation (an orbit
 scan when the environment provides one, plus the fixed camera's frame), queries the map for every
 object the instruction names, takes the **median** of the best region as the object's position
-(as the paper does), and plans a straight push perpendicular to the line towards the instructed
-side (:func:`planners.push.plan_push`). When the swept corridor would hit other things on the
-table, it tries pushes tilted by up to 35 degrees that still cross the line. One push per step;
-the next step re-maps and re-checks, so an object that did not cross is pushed again (one retry
-per object by default). It stops when every target is past the line in its map, or when it has
+(as the paper does) and the middle of the region's footprint as the point to push through, and
+plans a straight push perpendicular to the line towards the instructed side
+(:func:`planners.push.plan_push`). Candidate pushes must start on the table (its extent is read
+from the map), keep the object on it and not put the finger down on another object; when the
+swept corridor would hit other things on the table, pushes tilted by up to 35 degrees that still
+cross the line are tried, and a target with no clear corridor waits until the other targets are
+done. One push per step; the next step re-maps and re-checks, so an object that did not cross is
+pushed again (up to three pushes per object by default). An object counts as done when its
+centre is 3.5 cm past the line in the map. It stops when every target is done, or when it has
 run out of attempts.
 
 The map-free single-frame variant is the same agent with a non-persistent mapper and no scan:
