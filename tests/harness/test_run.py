@@ -183,3 +183,48 @@ def test_user_agents_by_plugin_name_and_by_import_path_run_in_worker_processes(t
         assert r["encoder"] == "oracle"  # the suite's pinned perception reaches agents that take an encoder
     with pytest.raises(ValueError, match="cannot import"):
         run_suites(RunConfig(suites=("regression-rearrange",), plugins=("no_such_plugin_module",)), tmp_path / "bad", progress=False)
+
+
+CRASHER = '''
+import os
+
+
+class DiesInAct:
+    """Kills its own process, as a segfault in native code would."""
+
+    privileged = False
+
+    def reset(self, seed=None):
+        pass
+
+    def act(self, observation, info=None):
+        os._exit(7)
+'''
+
+
+def test_a_worker_that_dies_is_recorded_as_failed_and_the_run_goes_on(tmp_path, monkeypatch):
+    (tmp_path / "cf_crasher.py").write_text(CRASHER)
+    monkeypatch.syspath_prepend(str(tmp_path))
+    config = RunConfig(suites=("regression-rearrange",), agents=("cf_crasher:DiesInAct", "random-pusher"), limit=2,
+                       backend="process", workers=2)
+    records = run_suites(config, tmp_path / "run", progress=False)
+    crashed = [r for r in records if r["agent"] == "cf_crasher:DiesInAct"]
+    assert len(crashed) == 2 and all(r["status"] == "failed" and "exit code 7" in r["error"] for r in crashed)
+    assert [r["status"] for r in records if r["agent"] == "random-pusher"] == ["ok", "ok"]
+
+
+def test_missing_ray_names_the_extra(monkeypatch):
+    import builtins
+
+    from harness.backends import RayUnavailableError
+
+    real_import = builtins.__import__
+
+    def no_ray(name, *args, **kwargs):
+        if name == "ray" or name.startswith("ray."):
+            raise ImportError("No module named 'ray'")
+        return real_import(name, *args, **kwargs)
+
+    monkeypatch.setattr(builtins, "__import__", no_ray)
+    with pytest.raises(RayUnavailableError, match=r'pip install -e "\.\[ray\]"'):
+        list(run_jobs(_cheap_jobs(1), backend="ray"))
