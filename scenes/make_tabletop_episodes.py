@@ -16,7 +16,7 @@ from sim_envs.episodes import episodes_text, generate_tabletop_episodes
 __all__ = ["GENERATOR_SEED", "COUNT", "build_files", "main"]
 
 GENERATOR_SEED = 2023
-COUNT = 50
+COUNT = 150
 ROOT = Path(__file__).resolve().parent
 
 
