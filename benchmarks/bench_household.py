@@ -16,6 +16,8 @@ from sim_envs.mujoco_scene import build_mujoco
 from sim_envs.scene_gen_household import generate_household
 from sim_envs.scene_scan import SceneScanEnv, room_sweep_trajectory
 
+from bench_render import time_mujoco_renders
+
 
 def bench_reset(n: int = 10) -> None:
     gen, build, total = [], [], []
@@ -50,19 +52,7 @@ def bench_env_reset(n: int = 5) -> None:
 
 def bench_render(width: int, height: int, frames: int = 60, segmentation: bool = True) -> None:
     scene = generate_household(0)
-    sim = build_mujoco(scene)
-    cam = MujocoRGBDCamera(sim.model, sim.data, width, height, geom_object=sim.geom_labels())
-    poses = room_sweep_trajectory(scene, frames)
-    cam.set_pose(*poses[0])
-    cam.render(segmentation=segmentation)
-    t0 = time.perf_counter()
-    for eye, target in poses:
-        cam.set_pose(eye, target)
-        cam.render(segmentation=segmentation)
-    dt = time.perf_counter() - t0
-    what = "RGB-D + segmentation" if segmentation else "RGB-D"
-    print(f"household {what} {width}x{height}: {frames / dt:.0f} frames/s ({1000 * dt / frames:.1f} ms/frame)")
-    cam.close()
+    time_mujoco_renders("household", scene, lambda sim: sim.geom_labels(), room_sweep_trajectory(scene, frames), width, height, segmentation)
 
 
 if __name__ == "__main__":

@@ -19,11 +19,10 @@ from sim_envs.scene_gen import generate_tabletop
 from sim_envs.scene_scan import orbit_trajectory
 
 
-def bench(width: int, height: int, frames: int = 60, segmentation: bool = True) -> None:
-    scene = generate_tabletop(0)
+def time_mujoco_renders(label: str, scene, geom_object, poses, width: int, height: int, segmentation: bool = True) -> float:
+    """Render ``poses`` (after one warm-up frame) with a MuJoCo camera, print and return frames/s."""
     sim = build_mujoco(scene)
-    cam = MujocoRGBDCamera(sim.model, sim.data, width, height, geom_object=sim.geom_object)
-    poses = orbit_trajectory(scene, frames)
+    cam = MujocoRGBDCamera(sim.model, sim.data, width, height, geom_object=geom_object(sim))
     cam.set_pose(*poses[0])
     cam.render(segmentation=segmentation)
     t0 = time.perf_counter()
@@ -31,9 +30,15 @@ def bench(width: int, height: int, frames: int = 60, segmentation: bool = True) 
         cam.set_pose(eye, target)
         cam.render(segmentation=segmentation)
     dt = time.perf_counter() - t0
-    what = "RGB-D + segmentation" if segmentation else "RGB-D"
-    print(f"MuJoCo {what} {width}x{height}: {frames / dt:.0f} frames/s ({1000 * dt / frames:.1f} ms/frame)")
     cam.close()
+    what = "RGB-D + segmentation" if segmentation else "RGB-D"
+    print(f"{label} {what} {width}x{height}: {len(poses) / dt:.0f} frames/s ({1000 * dt / len(poses):.1f} ms/frame)")
+    return len(poses) / dt
+
+
+def bench(width: int, height: int, frames: int = 60, segmentation: bool = True) -> None:
+    scene = generate_tabletop(0)
+    time_mujoco_renders("MuJoCo", scene, lambda sim: sim.geom_object, orbit_trajectory(scene, frames), width, height, segmentation)
 
 
 def bench_reset(n: int = 10) -> None:
