@@ -96,9 +96,10 @@ def _agent_kwargs_for(agent: str, encoder: str, extra: dict) -> dict:
     spec = AGENTS.get(agent)
     if spec is None:  # a user agent given by import path: every option, and the encoder if it takes one
         kw = dict(extra)
+        factory = _resolve(agent)  # an unimportable path fails here, before any episode runs
         try:
-            params = inspect.signature(_resolve(agent)).parameters
-        except (TypeError, ValueError):
+            params = inspect.signature(factory).parameters
+        except (TypeError, ValueError):  # a callable without a signature (some builtins)
             params = {}
         if "encoder" in params or any(p.kind is inspect.Parameter.VAR_KEYWORD for p in params.values()):
             kw.setdefault("encoder", encoder)
