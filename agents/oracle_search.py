@@ -45,6 +45,10 @@ class OracleSearchAgent:
 
     Args:
         inset: metres inside the success radius that the path aims for and the stop waits for.
+        lookahead: how far along the path (m) the carrot is looked for.
+        control_dt: the environment's control period (s): a step's speed covers the carrot.
+        max_linear, max_angular: command limits (m/s, rad/s).
+        turn_angle: heading error (rad) above which the base turns in place.
     """
 
     privileged = True
