@@ -365,18 +365,31 @@ class PyBulletTabletop:
         p0 = np.array([*start, z_push])
         p1 = p0 + distance * d
         n_mid = max(1, math.ceil(distance / 0.02))
-        plan = [("above the start", np.array([*start, safe_z])), ("the start", p0)]
-        plan += [("a point along the push", p0 + (p1 - p0) * k / n_mid) for k in range(1, n_mid)]
-        plan += [("the end", p1), ("above the end", np.array([*p1[:2], safe_z]))]
+        def approach_heights(xy) -> list[float]:
+            # High above everything first; where the arm cannot reach that high (far from its
+            # base), just above what stands within 15 cm: the transit to it is planned around
+            # the objects anyway, and the way down is vertical over a free start point.
+            near = np.linalg.norm((aabbs[:, 0, :2] + aabbs[:, 1, :2]) / 2 - xy, axis=1) < 0.15
+            low = max(z_push + 0.08, float(aabbs[near, 1, 2].max(initial=0.0)) + 0.05)
+            return [safe_z] + ([low] if low < safe_z - 1e-6 else [])
+
+        plan = [("above the start", [np.array([*start, z]) for z in approach_heights(start)]), ("the start", [p0])]
+        plan += [("a point along the push", [p0 + (p1 - p0) * k / n_mid]) for k in range(1, n_mid)]
+        plan += [("the end", [p1]), ("above the end", [np.array([*p1[:2], z]) for z in approach_heights(p1[:2])])]
         q = self._q
-        solved = []
-        for label, point in plan:
-            q, err = self._reach(point, q)
+        solved, waypoints = [], []
+        for label, options in plan:
+            for point in options:
+                q_try, err = self._reach(point, q)
+                if err <= self.reach_tol:
+                    break
             if err > self.reach_tol:
                 return PushOutcome(
                     False, f"the arm cannot reach {label} {point.round(3).tolist()} (IK error {100 * err:.1f} cm > {100 * self.reach_tol:.1f} cm)", False, none,
                 )
+            q = q_try
             solved.append(q)
+            waypoints.append(point)
         self._place_obstacles()
         there, why = self._plan_transit(self._q, solved[0], "above the start")
         back = None
@@ -387,9 +400,9 @@ class PyBulletTabletop:
         path: list[np.ndarray] = [self._tip()]
         fast = 3 * self.push_speed
         touched = self._follow(there, path)
-        touched |= self._track(plan[0][1], p0, fast, path)
+        touched |= self._track(waypoints[0], p0, fast, path)
         touched |= self._track(p0, p1, self.push_speed, path)
-        touched |= self._track(p1, plan[-1][1], fast, path)
+        touched |= self._track(p1, waypoints[-1], fast, path)
         back[0] = self._q  # start from where the lift ended
         touched |= self._follow(back, path)
         self._settle()
