@@ -5,13 +5,15 @@ centre of the table's -y edge, facing +y, fingers closed. It reaches most of the
 the far corners nor the table right in front of its base: :meth:`PyBulletTabletop.can_reach`
 tells. The hand turns so that its narrow side leads the push; above about 4.5 cm over the
 fingertip the hand itself is part of the pusher. A push is planned before anything
-moves: inverse kinematics with the hand pointing down is solved, in a second kinematics-only
-client, for every waypoint (above the start, the start at ``PUSH_HEIGHT``, points every 2 cm
-along the push, above the end); if any waypoint is missed by more than ``reach_tol`` the push
+moves: inverse kinematics with the hand pointing down is solved, in the arm's kinematics twin
+(:class:`~sim_envs.panda_kinematics.PandaKinematics`), for every waypoint (above the start, the
+start at ``PUSH_HEIGHT``, points every 2 cm along the push, above the end; the approach points
+high above the objects, or just above the nearby ones where the arm cannot reach that high);
+if any waypoint is missed by more than ``reach_tol`` the push
 is refused with a reason and the scene is untouched. The two transit moves, from the current
 pose to above the start and from above the end back home, are planned in joint space with OMPL
 (RRT-Connect, :func:`planners.joint_space.plan_joint_path`) against the table and the objects'
-bounding boxes (inflated by ``clearance``) placed in the kinematics client; a transit without a
+bounding boxes (inflated by ``clearance``) placed in the twin; a transit without a
 collision-free path refuses the push. Executing follows the planned joint paths and tracks the
 fingertip in straight lines for the rest (a vertical descent, the push at ``push_speed``, a
 vertical lift) with joint position control while physics steps, then steps until the objects
@@ -27,6 +29,7 @@ import math
 import numpy as np
 
 from sim_envs.mujoco_camera import RGBDFrame
+from sim_envs.panda_kinematics import ARM_JOINTS, BASE_YAW, FINGER_JOINTS, HOME_JOINTS, PANDA_URDF, TIP_LINK, PandaKinematics, load_panda
 from sim_envs.pybullet_camera import RENDERERS, PyBulletRGBDCamera, forget_client, load_egl_plugin
 from sim_envs.pybullet_scene import build_pybullet
 from sim_envs.scene_format import Scene
@@ -34,27 +37,8 @@ from sim_envs.tabletop_sim import PUSH_HEIGHT, PushOutcome
 
 __all__ = ["PyBulletTabletop", "PANDA_URDF", "HOME_JOINTS"]
 
-PANDA_URDF = "franka_panda/panda.urdf"
-"""The arm, inside ``pybullet_data``."""
-
-HOME_JOINTS = (0.0, -1.0, 0.0, -2.6, 0.0, 1.75, math.pi / 4)
-"""Arm joint angles of the home pose: hand raised above the table edge, out of the way."""
-
-_ARM = tuple(range(7))
-_FINGERS = (9, 10)
-_TIP_LINK = 11  # panda_grasptarget
 _FORCES = (87.0,) * 4 + (12.0,) * 3
-_BASE_YAW = math.pi / 2  # the arm faces +y
 _CONTROL_STEPS = 4  # physics steps per control waypoint
-_JOINT_LO = np.array([-2.9671, -1.8326, -2.9671, -3.0718, -2.9671, -0.0175, -2.9671])
-_JOINT_HI = np.array([2.9671, 1.8326, 2.9671, -0.0698, 2.9671, 3.7525, 2.9671])
-_CHECKED_LINKS = tuple(range(2, 12))  # links 0-1 sit on the pedestal at the table's edge
-_IK_SEEDS = (  # tried in turn when the current configuration does not lead to a solution
-    HOME_JOINTS,
-    (0.0, 0.3, 0.0, -2.2, 0.0, 2.5, math.pi / 4),
-    (0.0, -0.3, 0.0, -2.9, 0.0, 2.6, math.pi / 4),
-    (0.0, 0.6, 0.0, -1.2, 0.0, 1.8, math.pi / 4),
-)
 
 
 class PyBulletTabletop:
@@ -99,15 +83,10 @@ class PyBulletTabletop:
         self.push_speed = float(push_speed)
         self.reach_tol = float(reach_tol)
         self.settle_steps = int(settle_steps)
-        self.clearance, self.plan_time = float(clearance), float(plan_time)
-        self._obstacles: list[int] = []
-        self._plan_count = 0
         self._dt = float(time_step)
         self._p = p
         self.client = p.connect(p.DIRECT)
-        self._ik = p.connect(p.DIRECT)  # kinematics-only twin of the arm for planning
-        for c in (self.client, self._ik):
-            p.setAdditionalSearchPath(pybullet_data.getDataPath(), physicsClientId=c)
+        p.setAdditionalSearchPath(pybullet_data.getDataPath(), physicsClientId=self.client)
         p.setTimeStep(self._dt, physicsClientId=self.client)
         p.setPhysicsEngineParameter(deterministicOverlappingPairs=1, physicsClientId=self.client)
         if renderer not in RENDERERS:
@@ -118,88 +97,25 @@ class PyBulletTabletop:
         t = scene.table
         self.table_top_z = t.top_z
         self.base_pos = np.array([t.center[0], t.center[1] - t.size[1] / 2 - 0.08, t.top_z])
-        base_orn = p.getQuaternionFromEuler([0.0, 0.0, _BASE_YAW])
-        self.robot = self._load_panda(self.client, base_orn)
-        self._twin = self._load_panda(self._ik, base_orn)
+        base_orn = p.getQuaternionFromEuler([0.0, 0.0, BASE_YAW])
+        self.robot = load_panda(p, self.client, self.base_pos, base_orn)
+        self.kin = PandaKinematics(self.base_pos, base_orn, reach_tol=reach_tol, clearance=clearance, plan_time=plan_time, seed=self.seed)
         ped_h = t.top_z / 2
         col = p.createCollisionShape(p.GEOM_BOX, halfExtents=[0.1, 0.1, ped_h], physicsClientId=self.client)
         vis = p.createVisualShape(p.GEOM_BOX, halfExtents=[0.1, 0.1, ped_h], rgbaColor=[0.3, 0.3, 0.32, 1], physicsClientId=self.client)
         self.pedestal = p.createMultiBody(0.0, col, vis, [*self.base_pos[:2], ped_h], physicsClientId=self.client)
-        self._down = p.getQuaternionFromEuler([math.pi, 0.0, _BASE_YAW])
-        self._tip_offset = self._measure_tip_offset()
         self._q = np.array(HOME_JOINTS)
         self._hold(self._q)
         self._settle()
         self.home_tip = self._tip()
         self._cameras: dict[tuple, PyBulletRGBDCamera] = {}
 
-    # -- set-up ------------------------------------------------------------------------------
-    def _load_panda(self, client: int, orn) -> int:
-        p = self._p
-        body = p.loadURDF(PANDA_URDF, self.base_pos.tolist(), orn, useFixedBase=True, physicsClientId=client)
-        for j, q in zip(_ARM, HOME_JOINTS):
-            p.resetJointState(body, j, q, physicsClientId=client)
-        for j in _FINGERS:
-            p.resetJointState(body, j, 0.0, physicsClientId=client)
-        return body
-
-    def _measure_tip_offset(self) -> float:
-        """Height of the grasp-target frame above the lowest finger point, hand pointing down."""
-        p = self._p
-        q = self._solve(self.base_pos + [0.0, 0.45, 0.3], np.array(HOME_JOINTS))[0]
-        self._set_twin(q)
-        tip = np.array(p.getLinkState(self._twin, _TIP_LINK, computeForwardKinematics=True, physicsClientId=self._ik)[4])
-        low = min(p.getAABB(self._twin, j, physicsClientId=self._ik)[0][2] for j in _FINGERS)
-        return float(tip[2] - low)
-
-    def _set_twin(self, q) -> None:
-        for j, v in zip(_ARM, q):
-            self._p.resetJointState(self._twin, j, float(v), physicsClientId=self._ik)
-
-    def _solve(self, tip_target, seed_q: np.ndarray, rounds: int = 4) -> tuple[np.ndarray, float]:
-        """Joint angles putting the grasp target at ``tip_target`` with the hand down, and the
-        remaining position error (m)."""
-        p = self._p
-        lo = [-2.9671, -1.8326, -2.9671, -3.0718, -2.9671, -0.0175, -2.9671, 0.0, 0.0]
-        hi = [2.9671, 1.8326, 2.9671, -0.0698, 2.9671, 3.7525, 2.9671, 0.04, 0.04]
-        ranges = [h - l for l, h in zip(lo, hi)]
-        target = [float(x) for x in tip_target]
-        q = np.asarray(seed_q, np.float64)
-        rest = [float(v) for v in q] + [0.0, 0.0]
-        err = math.inf
-        for _ in range(rounds):
-            self._set_twin(q)
-            sol = p.calculateInverseKinematics(
-                self._twin, _TIP_LINK, target, self._down, lowerLimits=lo, upperLimits=hi, jointRanges=ranges,
-                restPoses=rest, maxNumIterations=200, residualThreshold=1e-5, physicsClientId=self._ik,
-            )
-            q = np.clip(np.asarray(sol[:7]), lo[:7], hi[:7])
-            self._set_twin(q)
-            got = p.getLinkState(self._twin, _TIP_LINK, computeForwardKinematics=True, physicsClientId=self._ik)[4]
-            err = float(np.linalg.norm(np.asarray(got) - target))
-            if err < 1e-3:
-                break
-        return q, err
-
-    def _reach(self, tip, seed_q) -> tuple[np.ndarray, float]:
-        """IK for a fingertip point, from ``seed_q`` and then from fixed seeds until one is
-        within ``reach_tol``; returns the best joint angles and their error (m)."""
-        target = np.asarray(tip, np.float64) + [0.0, 0.0, self._tip_offset]
-        best = self._solve(target, seed_q)
-        for seed in _IK_SEEDS:
-            if best[1] <= self.reach_tol:
-                break
-            cand = self._solve(target, np.array(seed), rounds=8)
-            if cand[1] < best[1]:
-                best = cand
-        return best
-
     def can_reach(self, xy) -> bool:
         """Whether the fingertip can reach the table point ``xy`` (2,) at ``PUSH_HEIGHT``."""
         xy = np.asarray(xy, np.float64).reshape(-1)
         if xy.shape != (2,):
             raise ValueError(f"xy: expected 2 numbers, got shape {xy.shape}")
-        return self._reach(np.array([*xy, self.table_top_z + PUSH_HEIGHT]), self._q)[1] <= self.reach_tol
+        return self.kin.reach(np.array([*xy, self.table_top_z + PUSH_HEIGHT]), self._q)[1] <= self.reach_tol
 
     # -- state ------------------------------------------------------------------------------
     def object_poses(self) -> np.ndarray:
@@ -229,18 +145,18 @@ class PyBulletTabletop:
 
     def _tip(self) -> np.ndarray:
         """World position of the lowest fingertip point (hand pointing down)."""
-        ls = self._p.getLinkState(self.robot, _TIP_LINK, computeForwardKinematics=True, physicsClientId=self.client)
-        return np.asarray(ls[4]) - [0.0, 0.0, self._tip_offset]
+        ls = self._p.getLinkState(self.robot, TIP_LINK, computeForwardKinematics=True, physicsClientId=self.client)
+        return np.asarray(ls[4]) - [0.0, 0.0, self.kin.tip_offset]
 
     # -- motion -----------------------------------------------------------------------------
     def _hold(self, q) -> None:
         p = self._p
         p.setJointMotorControlArray(
-            self.robot, _ARM, p.POSITION_CONTROL, targetPositions=[float(v) for v in q], forces=_FORCES,
+            self.robot, ARM_JOINTS, p.POSITION_CONTROL, targetPositions=[float(v) for v in q], forces=_FORCES,
             physicsClientId=self.client,
         )
         p.setJointMotorControlArray(
-            self.robot, _FINGERS, p.POSITION_CONTROL, targetPositions=[0.0, 0.0], forces=[20.0, 20.0],
+            self.robot, FINGER_JOINTS, p.POSITION_CONTROL, targetPositions=[0.0, 0.0], forces=[20.0, 20.0],
             physicsClientId=self.client,
         )
 
@@ -262,9 +178,9 @@ class PyBulletTabletop:
         touched = False
         for k in range(1, n + 1):
             target = a + (b - a) * k / n
-            self._q, err = self._solve(target + [0.0, 0.0, self._tip_offset], self._q, rounds=2)
+            self._q, err = self.kin.solve(target + [0.0, 0.0, self.kin.tip_offset], self._q, rounds=2)
             if err > self.reach_tol:
-                self._q = self._reach(target, self._q)[0]
+                self._q = self.kin.reach(target, self._q)[0]
             self._hold(self._q)
             touched |= self._step(_CONTROL_STEPS)
             path.append(self._tip())
@@ -285,44 +201,14 @@ class PyBulletTabletop:
                     return
 
     # -- the primitive ----------------------------------------------------------------------
-    # -- transit planning (OMPL) ---------------------------------------------------------------
+    # -- transit planning (OMPL, in the kinematics twin) ---------------------------------------
     def _place_obstacles(self) -> None:
-        """The table top and every object's current box, static, in the kinematics client."""
-        p = self._p
-        for b in self._obstacles:
-            p.removeBody(b, physicsClientId=self._ik)
+        """The table top and every object's current box, as the twin's obstacles."""
         t = self.scene.table
         boxes = [(np.array([*t.center[:2], t.top_z - 0.025]), np.array([t.size[0] / 2, t.size[1] / 2, 0.025]))]
         for lo, hi in self.object_aabbs():
             boxes.append(((lo + hi) / 2, np.maximum((hi - lo) / 2, 1e-3)))
-        self._obstacles = []
-        for centre, half in boxes:
-            col = p.createCollisionShape(p.GEOM_BOX, halfExtents=half.tolist(), physicsClientId=self._ik)
-            self._obstacles.append(p.createMultiBody(0.0, col, -1, centre.tolist(), physicsClientId=self._ik))
-
-    def arm_config_free(self, q) -> bool:
-        """True when the arm at joint angles ``q`` (7,) keeps ``clearance`` from the table and the
-        object boxes last placed by a push (links on the pedestal excluded)."""
-        p = self._p
-        self._set_twin(q)
-        for b in self._obstacles:
-            for link in _CHECKED_LINKS:
-                if p.getClosestPoints(self._twin, b, self.clearance, linkIndexA=link, physicsClientId=self._ik):
-                    return False
-        return True
-
-    def _plan_transit(self, q0, q1, label: str):
-        """An OMPL joint path from q0 to q1, (N, 7), or the reason there is none."""
-        from planners.joint_space import plan_joint_path
-
-        self._plan_count += 1
-        res = plan_joint_path(
-            np.clip(q0, _JOINT_LO, _JOINT_HI), np.clip(q1, _JOINT_LO, _JOINT_HI), _JOINT_LO, _JOINT_HI, self.arm_config_free,
-            time_limit=self.plan_time, seed=self.seed * 1000 + self._plan_count, resolution=0.02, simplify_time=self.plan_time,
-        )
-        if not res.solved:
-            return None, f"no collision-free arm motion to {label} ({res.status}: {res.reason})"
-        return np.array(res.path, dtype=np.float64), ""
+        self.kin.set_obstacles(boxes)
 
     def _follow(self, path_q: np.ndarray, path: list) -> bool:
         """Drive the arm along a joint path, at most 0.03 rad per control waypoint."""
@@ -360,8 +246,8 @@ class PyBulletTabletop:
         # The hand's long side (across the fingers) turns perpendicular to the push, so what
         # leads is the narrow side of the fingers and hand.
         # Of the two equivalent yaws, the one nearer the base's keeps the wrist mid-range.
-        hand_yaw = _BASE_YAW + ((direction_rad - _BASE_YAW + math.pi / 2) % math.pi - math.pi / 2)
-        self._down = self._p.getQuaternionFromEuler([math.pi, 0.0, hand_yaw])
+        hand_yaw = BASE_YAW + ((direction_rad - BASE_YAW + math.pi / 2) % math.pi - math.pi / 2)
+        self.kin.down = self._p.getQuaternionFromEuler([math.pi, 0.0, hand_yaw])
         p0 = np.array([*start, z_push])
         p1 = p0 + distance * d
         n_mid = max(1, math.ceil(distance / 0.02))
@@ -380,7 +266,7 @@ class PyBulletTabletop:
         solved, waypoints = [], []
         for label, options in plan:
             for point in options:
-                q_try, err = self._reach(point, q)
+                q_try, err = self.kin.reach(point, q)
                 if err <= self.reach_tol:
                     break
             if err > self.reach_tol:
@@ -391,10 +277,10 @@ class PyBulletTabletop:
             solved.append(q)
             waypoints.append(point)
         self._place_obstacles()
-        there, why = self._plan_transit(self._q, solved[0], "above the start")
+        there, why = self.kin.plan_transit(self._q, solved[0], "above the start")
         back = None
         if there is not None:
-            back, why = self._plan_transit(solved[-1], np.array(HOME_JOINTS), "the home pose")
+            back, why = self.kin.plan_transit(solved[-1], np.array(HOME_JOINTS), "the home pose")
         if there is None or back is None:
             return PushOutcome(False, why, False, none)
         path: list[np.ndarray] = [self._tip()]
@@ -424,11 +310,11 @@ class PyBulletTabletop:
         return cam.render(segmentation=segmentation)
 
     def close(self) -> None:
-        """Disconnect both PyBullet clients (idempotent)."""
-        for c in (self.client, self._ik):
-            forget_client(c)
-            try:
-                self._p.disconnect(physicsClientId=c)
-            except Exception:  # already disconnected
-                pass
+        """Disconnect the simulation and the kinematics twin (idempotent)."""
+        forget_client(self.client)
+        try:
+            self._p.disconnect(physicsClientId=self.client)
+        except Exception:  # already disconnected
+            pass
+        self.kin.close()
         self._cameras.clear()

@@ -120,18 +120,18 @@ def test_transit_moves_are_planned_collision_free_with_ompl(sim):
     from sim_envs.pybullet_tabletop import HOME_JOINTS
 
     sim._place_obstacles()
-    assert sim.arm_config_free(np.array(HOME_JOINTS))
+    assert sim.kin.config_free(np.array(HOME_JOINTS))
     # the fingertip on the table top is not free (the hand is inside the clearance)
-    low, err = sim._reach(np.array([0.0, 0.1, TOP + 0.002]), np.array(HOME_JOINTS))
-    assert err < 0.02 and not sim.arm_config_free(low)
+    low, err = sim.kin.reach(np.array([0.0, 0.1, TOP + 0.002]), np.array(HOME_JOINTS))
+    assert err < 0.02 and not sim.kin.config_free(low)
     # the tip inside the can's box is not free either
-    inside, err = sim._reach(np.array([0.4, 0.2, TOP + 0.06]), np.array(HOME_JOINTS))
-    assert err < 0.02 and not sim.arm_config_free(inside)
-    above, _ = sim._reach(np.array([0.4, 0.2, TOP + 0.35]), np.array(HOME_JOINTS))
-    path, why = sim._plan_transit(np.array(HOME_JOINTS), above, "above the can")
+    inside, err = sim.kin.reach(np.array([0.4, 0.2, TOP + 0.06]), np.array(HOME_JOINTS))
+    assert err < 0.02 and not sim.kin.config_free(inside)
+    above, _ = sim.kin.reach(np.array([0.4, 0.2, TOP + 0.35]), np.array(HOME_JOINTS))
+    path, why = sim.kin.plan_transit(np.array(HOME_JOINTS), above, "above the can")
     assert path is not None, why
     assert np.allclose(path[0], HOME_JOINTS) and np.allclose(path[-1], above)
     dense = [a + (b - a) * t for a, b in zip(path[:-1], path[1:]) for t in np.linspace(0, 1, 8)]
-    assert all(sim.arm_config_free(q) for q in dense)
-    blocked, why = sim._plan_transit(np.array(HOME_JOINTS), inside, "inside the can")
+    assert all(sim.kin.config_free(q) for q in dense)
+    blocked, why = sim.kin.plan_transit(np.array(HOME_JOINTS), inside, "inside the can")
     assert blocked is None and "no collision-free arm motion to inside the can" in why
