@@ -158,7 +158,9 @@ def run_suites(
     """Run every suite of ``config`` into ``run_dir``; returns all records of the run."""
     from harness.backends import run_jobs
     from harness.map_suites import map_suite_jobs, run_map_job
-    from harness.results import append_record, completed_keys, load_results, read_run_config, record_key, repair_results, write_run_config
+    from harness.results import (
+        agent_label, append_record, completed_keys, load_results, read_run_config, record_key, repair_results, write_run_config,
+    )
 
     run_dir = Path(run_dir)
     results = run_dir / "results.jsonl"
@@ -175,29 +177,28 @@ def run_suites(
         run_id = uuid.uuid4().hex[:12]
         write_run_config(run_dir, {"run_id": run_id, "settings": config.settings(), "backend": config.backend})
     done = completed_keys(load_results(results))
+
+    def keep(rec: dict) -> None:
+        append_record(results, rec)
+        if on_record:
+            on_record(rec)
+
     for suite in suites:
         if suite.kind == "maps":
             jobs = map_suite_jobs(suite.name, config, run_id, out_dir=run_dir)
-            todo = [j for j in jobs if record_key(j.key_record()) not in done]
-            bar = Progress(len(todo), suite.name) if progress and todo else None
+        else:
+            jobs = episode_jobs(suite, config, run_id)
+        todo = [j for j in jobs if record_key(j.key_record()) not in done]
+        bar = Progress(len(todo), suite.name) if progress and todo else None
+        if suite.kind == "maps":
             for job in todo:
                 for rec in run_map_job(job):
-                    append_record(results, rec)
-                    if on_record:
-                        on_record(rec)
+                    keep(rec)
                 if bar:
                     bar.update(job.label)
             continue
-        jobs = episode_jobs(suite, config, run_id)
-        from harness.results import agent_label
-
-        todo = [j for j in jobs if record_key({"suite": j.suite, "agent": j.agent, "agent_kwargs": j.agent_kwargs, "encoder": j.encoder,
-                                              "episode_id": j.episode.episode_id, "seed": j.seed}) not in done]
-        bar = Progress(len(todo), suite.name) if progress and todo else None
         for rec in run_jobs(todo, backend=config.backend, workers=config.workers, address=config.address):
-            append_record(results, rec)
-            if on_record:
-                on_record(rec)
+            keep(rec)
             if bar:
                 ok = "ok" if rec["metrics"].get("success") else rec["status"] if rec["status"] != "ok" else "fail"
                 bar.update(f"{agent_label(rec['agent'], rec['agent_kwargs'])} {rec['episode_id']} {ok}")

@@ -41,6 +41,11 @@ class EpisodeJob:
     def encoder(self) -> str:
         return str(self.agent_kwargs.get("encoder", "none"))
 
+    def key_record(self) -> dict:
+        """The fields that identify this episode's record (see :func:`harness.results.record_key`)."""
+        return {"suite": self.suite, "agent": self.agent, "agent_kwargs": dict(self.agent_kwargs), "encoder": self.encoder,
+                "episode_id": self.episode.episode_id, "seed": self.seed}
+
 
 def episode_seed(job: EpisodeJob) -> int:
     """The agent's seed for one episode: the run's seed mixed with the episode id, so that random
