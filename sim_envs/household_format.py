@@ -28,6 +28,7 @@ import numpy as np
 from sim_envs.furniture import FURNITURE, MATERIALS, Surface
 
 __all__ = [
+    "parse_vector",
     "Room", "Wall", "Furniture", "CONTAINER_FLOOR", "parse_rooms", "parse_walls", "parse_furniture",
     "check_supports", "support_surface_z",
 ]
@@ -122,7 +123,8 @@ class Furniture:
         return xy - half, xy + half
 
 
-def _vec(name: str, value, n: int) -> tuple[float, ...]:
+def parse_vector(name: str, value, n: int) -> tuple[float, ...]:
+    """``value`` as ``n`` finite floats; ``ValueError`` naming the field ``name`` otherwise."""
     try:
         v = tuple(float(x) for x in value)
     except (TypeError, ValueError):
@@ -156,7 +158,7 @@ def parse_rooms(d: dict, source: str) -> tuple[Room, ...]:
         fl = r["floor"]
         if not isinstance(fl, (list, tuple)) or len(fl) != 2:
             raise ValueError(f"{where}.floor: expected [[x0, y0], [x1, y1]], got {fl!r}")
-        lo, hi = _vec(f"{where}.floor[0]", fl[0], 2), _vec(f"{where}.floor[1]", fl[1], 2)
+        lo, hi = parse_vector(f"{where}.floor[0]", fl[0], 2), parse_vector(f"{where}.floor[1]", fl[1], 2)
         if not (hi[0] > lo[0] and hi[1] > lo[1]):
             raise ValueError(f"{where}.floor: expected lower corner below upper corner, got {fl!r}")
         rooms.append(
@@ -170,14 +172,14 @@ def parse_walls(d: dict, source: str) -> tuple[Wall, ...]:
     """Validated walls: positive thickness and height, doors within the wall and apart."""
     walls = []
     for where, w in _entries(d, "walls", source, ("id", "start", "end")):
-        start, end = _vec(f"{where}.start", w["start"], 2), _vec(f"{where}.end", w["end"], 2)
+        start, end = parse_vector(f"{where}.start", w["start"], 2), parse_vector(f"{where}.end", w["end"], 2)
         thickness, height = float(w.get("thickness", 0.1)), float(w.get("height", 2.5))
         if thickness <= 0 or height <= 0:
             raise ValueError(f"{where}: expected positive thickness and height, got {thickness}, {height}")
         mats = w.get("materials", ["plaster_white", "plaster_white"])
         if not isinstance(mats, (list, tuple)) or len(mats) != 2:
             raise ValueError(f"{where}.materials: expected [left, right], got {mats!r}")
-        doors = tuple(_vec(f"{where}.doors[{k}]", dr, 2) for k, dr in enumerate(w.get("doors") or []))
+        doors = tuple(parse_vector(f"{where}.doors[{k}]", dr, 2) for k, dr in enumerate(w.get("doors") or []))
         wall = Wall(str(w["id"]), start, end, thickness, height, tuple(_material(f"{where}.materials", m) for m in mats), doors)
         if wall.length <= 0:
             raise ValueError(f"{where}: start and end coincide at {start}")
@@ -196,7 +198,7 @@ def parse_furniture(d: dict, source: str) -> tuple[Furniture, ...]:
     for where, f in _entries(d, "furniture", source, ("id", "name", "category", "position", "size")):
         if f["category"] not in FURNITURE:
             raise ValueError(f"{where} ({f['id']!r}): unknown furniture kind {f['category']!r}; known kinds: {sorted(FURNITURE)}")
-        size = _vec(f"{where}.size", f["size"], 3)
+        size = parse_vector(f"{where}.size", f["size"], 3)
         if min(size) <= 0:
             raise ValueError(f"{where}.size: expected positive sizes, got {size}")
         shelves = tuple(float(s) for s in f.get("shelf_heights") or ())
@@ -205,7 +207,7 @@ def parse_furniture(d: dict, source: str) -> tuple[Furniture, ...]:
         kind = FURNITURE[f["category"]]
         out.append(
             Furniture(
-                str(f["id"]), str(f["name"]), str(f["category"]), _vec(f"{where}.position", f["position"], 3),
+                str(f["id"]), str(f["name"]), str(f["category"]), parse_vector(f"{where}.position", f["position"], 3),
                 float(f.get("yaw", 0.0)), size, _material(f"{where}.material", f.get("material", kind.default_material)),
                 tuple(str(p) for p in f.get("phrases", ())), shelves,
             )

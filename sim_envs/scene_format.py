@@ -33,7 +33,7 @@ import numpy as np
 
 from conceptfusion.io_utils import atomic_write_text
 from sim_envs.assets import ALL_ASSETS, COLORS
-from sim_envs.household_format import Furniture, Room, Wall, check_supports, parse_furniture, parse_rooms, parse_walls
+from sim_envs.household_format import Furniture, Room, Wall, check_supports, parse_furniture, parse_rooms, parse_vector, parse_walls
 
 __all__ = ["SceneObject", "Table", "Scene", "Room", "Wall", "Furniture", "load_scene", "save_scene", "scene_from_json", "FORMAT", "VERSION"]
 
@@ -146,16 +146,6 @@ def _object_json(o: SceneObject) -> dict:
     return d
 
 
-def _vec(name: str, value, n: int) -> tuple[float, ...]:
-    try:
-        v = tuple(float(x) for x in value)
-    except (TypeError, ValueError):
-        raise ValueError(f"{name}: expected {n} numbers, got {value!r}") from None
-    if len(v) != n or not all(np.isfinite(v)):
-        raise ValueError(f"{name}: expected {n} finite numbers, got {value!r}")
-    return v
-
-
 def scene_from_json(d: dict, *, source: str = "scene", overlap_tol: float = 0.002) -> Scene:
     """Validate a parsed scene document and build a :class:`Scene`."""
     if not isinstance(d, dict) or d.get("format") != FORMAT:
@@ -166,7 +156,7 @@ def scene_from_json(d: dict, *, source: str = "scene", overlap_tol: float = 0.00
     table = None
     if d.get("table"):
         t = d["table"]
-        table = Table(_vec("table.center", t.get("center"), 3), _vec("table.size", t.get("size"), 3), str(t.get("material", "wood")))
+        table = Table(parse_vector("table.center", t.get("center"), 3), parse_vector("table.size", t.get("size"), 3), str(t.get("material", "wood")))
     objects, seen = [], set()
     for i, o in enumerate(d.get("objects") or []):
         where = f"{source}: objects[{i}]"
@@ -182,13 +172,13 @@ def scene_from_json(d: dict, *, source: str = "scene", overlap_tol: float = 0.00
         if o["id"] in seen:
             raise ValueError(f"{where}: duplicate object id {o['id']!r}")
         seen.add(o["id"])
-        size = _vec(f"{where}.size", o["size"], 3)
+        size = parse_vector(f"{where}.size", o["size"], 3)
         if min(size) <= 0:
             raise ValueError(f"{where}.size: expected positive sizes, got {size}")
         objects.append(
             SceneObject(
                 id=str(o["id"]), name=str(o["name"]), category=str(o["category"]), asset=str(o["asset"]),
-                color=str(o["color"]), position=_vec(f"{where}.position", o["position"], 3),
+                color=str(o["color"]), position=parse_vector(f"{where}.position", o["position"], 3),
                 yaw=float(o.get("yaw", 0.0)), size=size, phrases=tuple(str(p) for p in o.get("phrases", ())),
                 support=None if o.get("support") is None else str(o["support"]),
             )
@@ -211,7 +201,7 @@ def scene_from_json(d: dict, *, source: str = "scene", overlap_tol: float = 0.00
                 raise ValueError(f"{source}: objects {a.id!r} ({a.name}) and {b.id!r} ({b.name}) overlap{where}")
     line = None
     if d.get("line"):
-        line = (_vec("line.start", d["line"].get("start"), 2), _vec("line.end", d["line"].get("end"), 2))
+        line = (parse_vector("line.start", d["line"].get("start"), 2), parse_vector("line.end", d["line"].get("end"), 2))
     return Scene(
         str(d.get("id", "")), str(d.get("kind", "")), int(d.get("seed", 0)), table, tuple(objects), line, d.get("extras", {}),
         rooms, walls, furniture,
