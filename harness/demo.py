@@ -119,6 +119,19 @@ def score_queries(fmap: PointFusionMap, encoder, truths: dict, out_dir: Path | N
     return outcomes
 
 
+def demo_summary(scene: str, fmap: PointFusionMap, frames: int, t_features: float, t_fuse: float, outcomes) -> dict:
+    """What a demo reports: the map's size and memory, per-frame timings and the query outcomes."""
+    return {
+        "scene": scene,
+        "num_points": len(fmap),
+        "bytes_per_point": fmap.nbytes() / max(len(fmap), 1),
+        "frames": frames,
+        "features_s_per_frame": t_features / frames,
+        "fusion_s_per_frame": t_fuse / frames,
+        "outcomes": outcomes,
+    }
+
+
 def run_demo(config: DemoConfig = DemoConfig(), out_dir: Path | None = None) -> dict:
     """Build the map, run the queries, optionally save map + PLY files; returns a summary.
 
@@ -151,13 +164,4 @@ def run_demo(config: DemoConfig = DemoConfig(), out_dir: Path | None = None) -> 
         box = next((b for b in boxes if b.name.startswith(text + " ")), None)
         truths[text] = None if box is None else (box.name, box.center, points_on_box(points, box))
     outcomes = score_queries(fmap, encoder, truths, out_dir)
-    return {
-        "encoder": config.encoder,
-        "scene": "boxes",
-        "num_points": len(fmap),
-        "bytes_per_point": fmap.nbytes() / max(len(fmap), 1),
-        "frames": config.frames,
-        "features_s_per_frame": t_features / config.frames,
-        "fusion_s_per_frame": t_fuse / config.frames,
-        "outcomes": outcomes,
-    }
+    return {"encoder": config.encoder, **demo_summary("boxes", fmap, config.frames, t_features, t_fuse, outcomes)}

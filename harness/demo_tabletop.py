@@ -59,7 +59,7 @@ def run_tabletop_demo(config, encoder, out_dir: Path | None = None) -> dict:
 
     ``config`` is a :class:`harness.demo.DemoConfig`; the outcomes are :class:`harness.demo.QueryOutcome`.
     """
-    from harness.demo import score_queries
+    from harness.demo import demo_summary, score_queries
     from sim_envs.assets import ASSETS, COLORS
     from sim_envs.mujoco_camera import MujocoRGBDCamera
     from sim_envs.mujoco_scene import build_mujoco
@@ -98,13 +98,4 @@ def run_tabletop_demo(config, encoder, out_dir: Path | None = None) -> dict:
         obj = next((o for o in scene.objects if o.name == text), None)
         centre = None if obj is None else np.asarray(obj.position, float) + np.array([0.0, 0.0, obj.size[2] / 2])
         truths[text] = None if obj is None else (obj.name, centre, points_on_object(points, obj))
-    outcomes = score_queries(fmap, encoder, truths, out_dir)
-    return {
-        "scene": scene.id,
-        "num_points": len(fmap),
-        "bytes_per_point": fmap.nbytes() / max(len(fmap), 1),
-        "frames": config.frames,
-        "features_s_per_frame": t_features / config.frames,
-        "fusion_s_per_frame": t_fuse / config.frames,
-        "outcomes": outcomes,
-    }
+    return demo_summary(scene.id, fmap, config.frames, t_features, t_fuse, score_queries(fmap, encoder, truths, out_dir))
