@@ -3,7 +3,7 @@
 Perception is chosen per agent with ``encoder``:
 
 * ``"oracle"`` (privileged): ground-truth segmentation labelled with the MiniLM text embedding of
-  each object's name (:class:`conceptfusion.oracle.OracleFeatures`), for upper bounds and
+  each object's name (:class:`conceptfusion.perception.oracle.OracleFeatures`), for upper bounds and
   regression tests that must not depend on perception;
 * ``"embedded"`` (default): the shipped image tower + MiniLM text tower with RGB-D mask proposals;
 * any other encoder registry spec (``"hf:..."``, ``"onnx:DIR"``, ``"color"``) with ``proposer``.
@@ -37,11 +37,11 @@ embedding, near-miss names (another colour, another kind) <= 0.75."""
 def make_mapper(encoder: str = "embedded", proposer: str = "rgbd", *, persistent: bool = True) -> ConceptMapper:
     """A :class:`ConceptMapper` for an encoder name (see the module docstring)."""
     if encoder == "oracle":
-        from conceptfusion.text_tower import MiniLMTextEncoder
+        from conceptfusion.perception.text_tower import MiniLMTextEncoder
 
         return ConceptMapper(MiniLMTextEncoder(), oracle=True, config=MapperConfig(persistent=persistent, min_score=ORACLE_MIN_SCORE))
-    from conceptfusion.encoder_registry import make_encoder
-    from conceptfusion.masks import make_proposer
+    from conceptfusion.perception.registry import make_encoder
+    from conceptfusion.perception.masks.registry import make_proposer
 
     enc = make_encoder(encoder)
     floor = getattr(enc, "info", {}).get("metrics", {}).get("score_floor") if hasattr(enc, "info") else None

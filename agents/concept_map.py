@@ -1,6 +1,6 @@
 """Online ConceptFusion mapping for agents: frames in, 3D answers to text queries out.
 
-A :class:`ConceptMapper` owns a :class:`~conceptfusion.fusion.PointFusionMap`, an encoder and a
+A :class:`ConceptMapper` owns a :class:`~conceptfusion.map.fusion.PointFusionMap`, an encoder and a
 mask proposer, and turns each posed RGB-D observation into pixel-aligned features (paper
 eqs. 3-6) fused into the map (eqs. 1-2). Agents ask it where a described object is
 (:meth:`ConceptMapper.locate`) and get a 3D region or an explicit "not found".
@@ -10,7 +10,7 @@ Two perception modes:
 * **perceived** (default): mask proposals from the RGB-D frame and crop/frame embeddings from
   an encoder (the embedded tower, or any registry encoder such as real CLIP);
 * **oracle** (privileged): each pixel gets the text embedding of its ground-truth object's
-  name (:class:`~conceptfusion.oracle.OracleFeatures`); it needs the simulator's segmentation,
+  name (:class:`~conceptfusion.perception.oracle.OracleFeatures`); it needs the simulator's segmentation,
   which the caller passes explicitly. Results built on it must say they are privileged.
 
 A single-frame (2.5D) agent uses the same mapper with ``persistent=False``: every frame
@@ -25,10 +25,10 @@ from typing import Mapping, Sequence
 
 import numpy as np
 
-from conceptfusion.fusion import PointFusionMap
-from conceptfusion.oracle import OracleFeatures
-from conceptfusion.pipeline import frame_features
-from conceptfusion.query import NEGATIVE_PHRASES, QueryResult, locate
+from conceptfusion.map.fusion import PointFusionMap
+from conceptfusion.perception.oracle import OracleFeatures
+from conceptfusion.perception.pipeline import frame_features
+from conceptfusion.map.query import NEGATIVE_PHRASES, QueryResult, locate
 
 __all__ = ["ConceptMapper", "MapperConfig", "frame_from_observation"]
 
@@ -46,7 +46,7 @@ class MapperConfig:
     min_points: int = 20
     """Smallest region (points) that counts as a found object."""
     relevancy_threshold: float = 0.6
-    """Calibrated decision against generic phrases (see :func:`conceptfusion.query.locate`)."""
+    """Calibrated decision against generic phrases (see :func:`conceptfusion.map.query.locate`)."""
     min_score: float | None = None
     """Also require the best region's median cosine score to reach this (None: no such test).
     Generic negatives do not reject a near-miss ("brown bottle" for "the black bottle" scores

@@ -5,7 +5,7 @@ from __future__ import annotations
 import numpy as np
 
 from conceptfusion.cameras import intrinsics_from_fovy
-from conceptfusion.features import PixelFeatures
+from conceptfusion.perception.features import PixelFeatures
 from conceptfusion.synthetic import Box, look_at, render_boxes
 
 

@@ -8,7 +8,7 @@ the paper's mixing (eqs. 3-6, palette form). Encoders measured:
 
 * ``ColorNameEncoder``: the built-in test encoder (colour histograms, no network);
 * a stand-in CPU CNN of realistic size: the embedded image tower's residual architecture
-  (:func:`conceptfusion.image_tower.build_tower`) widened to about 5 M parameters, random
+  (:func:`conceptfusion.perception.image_tower.build_tower`) widened to about 5 M parameters, random
   weights, 512-d output, on crops padded to squares and resized to 64x64 or 96x96, run
   in ``torch.inference_mode`` (channels-last layout) and in onnxruntime (how the embedded
   encoder runs). Weights do not change the cost, so the figure stands for a trained
@@ -36,9 +36,9 @@ sys.path.insert(0, str(Path(__file__).resolve().parent))
 from _scenes import room_boxes, room_trajectory  # noqa: E402
 
 from conceptfusion.cameras import intrinsics_from_fovy  # noqa: E402
-from conceptfusion.encoders import ColorNameEncoder  # noqa: E402
-from conceptfusion.features import crop_masks, pixel_aligned_palette  # noqa: E402
-from conceptfusion.masks_rgbd import RGBDProposer  # noqa: E402
+from conceptfusion.perception.encoders import ColorNameEncoder  # noqa: E402
+from conceptfusion.perception.features import crop_masks, pixel_aligned_palette  # noqa: E402
+from conceptfusion.perception.masks.rgbd import RGBDProposer  # noqa: E402
 from conceptfusion.synthetic import orbit_poses, render_boxes, tabletop_boxes  # noqa: E402
 
 H, W = 240, 320
@@ -86,7 +86,7 @@ class StandInCNN:
     def __init__(self, input_size: int, runtime: str, dim: int = 512) -> None:
         import torch
 
-        from conceptfusion.image_tower import TowerConfig, build_tower, export_tower_onnx, preprocess
+        from conceptfusion.perception.image_tower import TowerConfig, build_tower, export_tower_onnx, preprocess
 
         self.torch = torch
         self.preprocess = preprocess

@@ -11,10 +11,10 @@ from __future__ import annotations
 import statistics
 import time
 
-from sim_envs.mujoco_camera import MujocoRGBDCamera
-from sim_envs.mujoco_scene import build_mujoco
-from sim_envs.scene_gen_household import generate_household
-from sim_envs.scene_scan import SceneScanEnv, room_sweep_trajectory
+from sim_envs.mujoco.camera import MujocoRGBDCamera
+from sim_envs.mujoco.scene import build_mujoco
+from sim_envs.scenes.gen_household import generate_household
+from sim_envs.envs.scene_scan import SceneScanEnv, room_sweep_trajectory
 
 from bench_render import time_mujoco_renders
 

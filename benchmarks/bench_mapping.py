@@ -22,9 +22,9 @@ sys.path.insert(0, str(Path(__file__).resolve().parent))
 
 from _scenes import render_sequence  # noqa: E402
 
-from conceptfusion.encoders import ColorNameEncoder  # noqa: E402
-from conceptfusion.fusion import PointFusionMap  # noqa: E402
-from conceptfusion.query import locate  # noqa: E402
+from conceptfusion.perception.encoders import ColorNameEncoder  # noqa: E402
+from conceptfusion.map.fusion import PointFusionMap  # noqa: E402
+from conceptfusion.map.query import locate  # noqa: E402
 
 
 def bench_fusion(frames: int, dim: int) -> PointFusionMap:

@@ -13,10 +13,10 @@ import time
 
 import math
 
-from sim_envs.mujoco_camera import MujocoRGBDCamera
-from sim_envs.mujoco_scene import build_mujoco
-from sim_envs.scene_gen import generate_tabletop
-from sim_envs.scene_scan import orbit_trajectory
+from sim_envs.mujoco.camera import MujocoRGBDCamera
+from sim_envs.mujoco.scene import build_mujoco
+from sim_envs.scenes.gen_tabletop import generate_tabletop
+from sim_envs.envs.scene_scan import orbit_trajectory
 
 
 def time_mujoco_renders(label: str, scene, geom_object, poses, width: int, height: int, segmentation: bool = True) -> float:
@@ -53,7 +53,7 @@ def bench_reset(n: int = 10) -> None:
 
 
 def bench_pybullet(width: int, height: int, renderer: str, frames: int = 20) -> None:
-    from sim_envs.pybullet_tabletop import PyBulletTabletop
+    from sim_envs.pybullet.tabletop import PyBulletTabletop
 
     scene = generate_tabletop(0)
     sim = PyBulletTabletop(scene, renderer=renderer)
@@ -69,7 +69,7 @@ def bench_pybullet(width: int, height: int, renderer: str, frames: int = 20) -> 
 
 
 def bench_push(n: int = 6) -> None:
-    from sim_envs.pybullet_tabletop import PyBulletTabletop
+    from sim_envs.pybullet.tabletop import PyBulletTabletop
 
     scene = generate_tabletop(0)
     t0 = time.perf_counter()

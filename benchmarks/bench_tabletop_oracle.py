@@ -14,8 +14,8 @@ import time
 import numpy as np
 
 from agents.oracle_push import OraclePushAgent
-from sim_envs.episodes import SCENES_ROOT, load_episodes
-from sim_envs.tabletop_rearrange import TabletopRearrangeEnv
+from sim_envs.scenes.episodes import SCENES_ROOT, load_episodes
+from sim_envs.envs.tabletop_rearrange import TabletopRearrangeEnv
 
 
 def main() -> None:

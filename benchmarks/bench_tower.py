@@ -2,7 +2,7 @@
 
 For each of ``--scenes`` tabletop scenes never used in training (seeds from 95000), a few
 random views are rendered (240x320). Each view gets pixel-aligned features
-(:func:`conceptfusion.pipeline.frame_features`: global embedding, one crop per mask, the
+(:func:`conceptfusion.perception.pipeline.frame_features`: global embedding, one crop per mask, the
 paper's mixing) from masks of the RGB-D proposer and, as an upper bound on the masks, of the
 privileged ground-truth proposer. Every visible object (at least ``--min-px`` pixels) is
 queried by its name ("red mug"), and the answer is compared with the object's ground-truth
@@ -55,10 +55,10 @@ def main() -> None:
     import torch
 
     torch.set_num_threads(2)
-    from conceptfusion.encoder_registry import make_encoder
-    from conceptfusion.masks import make_proposer
-    from conceptfusion.pipeline import frame_features
-    from sim_envs.tower_views import ViewConfig, random_tabletop_views
+    from conceptfusion.perception.registry import make_encoder
+    from conceptfusion.perception.masks.registry import make_proposer
+    from conceptfusion.perception.pipeline import frame_features
+    from tower_training.views import ViewConfig, random_tabletop_views
 
     p = argparse.ArgumentParser(description=__doc__.splitlines()[0])
     p.add_argument("--scenes", type=int, default=10)

@@ -1,8 +1,12 @@
-"""The error hierarchy of the mapping core.
+"""The project's one error hierarchy.
 
-Every error raised for bad input derives from :class:`ConceptFusionError` and from the
-built-in class a caller would expect (``ValueError`` or ``TypeError``), so both
-``except ConceptFusionError`` and ``except ValueError`` work.
+Every error raised on purpose, in the mapping core and in the simulator, agent, planner and
+harness packages, derives from :class:`ConceptFusionError` and from the built-in class a
+caller would expect (``ValueError``, ``TypeError``, ``ImportError``), so both
+``except ConceptFusionError`` and ``except ValueError`` work. Packages above the core add their
+own subclasses (``sim_envs``: :class:`SimError`; ``agents``: :class:`AgentError`; ``planners``:
+:class:`PlannerError`; the harness: :class:`HarnessError`), all defined here so there is one
+place to look.
 """
 
 from __future__ import annotations
@@ -16,6 +20,11 @@ __all__ = [
     "MapVersionError",
     "MissingDependencyError",
     "CheckpointError",
+    "UnknownNameError",
+    "SimError",
+    "AgentError",
+    "PlannerError",
+    "HarnessError",
 ]
 
 
@@ -49,3 +58,24 @@ class MissingDependencyError(ConceptFusionError, ImportError):
 
 class CheckpointError(ConceptFusionError, ValueError):
     """A model checkpoint is incomplete, corrupt, or not the kind of model expected."""
+
+
+class UnknownNameError(ConceptFusionError, ValueError):
+    """A name looked up in a table of named things (agents, encoders, suites, assets) is not
+    there; the message names the nearest valid ones (:func:`conceptfusion.names.lookup`)."""
+
+
+class SimError(ConceptFusionError, ValueError):
+    """Bad input to a simulated scene, episode or environment (:mod:`sim_envs`)."""
+
+
+class AgentError(ConceptFusionError, ValueError):
+    """Bad input to an agent or the agent registry (:mod:`agents`)."""
+
+
+class PlannerError(ConceptFusionError, ValueError):
+    """Bad input to a planner, or a planning failure raised as an error (:mod:`planners`)."""
+
+
+class HarnessError(ConceptFusionError, ValueError):
+    """Bad settings or files of an evaluation run (:mod:`harness`)."""

@@ -11,7 +11,7 @@ __all__ = ["main"]
 
 
 def _cmd_demo(args: argparse.Namespace) -> int:
-    from harness.demo import DemoConfig, run_demo
+    from harness.demo.run import DemoConfig, run_demo
 
     cfg = DemoConfig(frames=args.frames, height=args.height, width=args.width, encoder=args.encoder,
                      proposer=args.proposer)
@@ -43,7 +43,7 @@ def _cmd_demo(args: argparse.Namespace) -> int:
 
 
 def build_parser() -> argparse.ArgumentParser:
-    from conceptfusion.encoder_registry import DEFAULT_ENCODER
+    from conceptfusion.perception.registry import DEFAULT_ENCODER
 
     parser = argparse.ArgumentParser(
         prog="cfharness",

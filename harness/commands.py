@@ -25,7 +25,7 @@ def _parse_kv(items: list[str] | None) -> dict:
 
 
 def _print_summary(records: list[dict], stream=sys.stdout) -> None:
-    from harness.stats import summarize
+    from harness.report.stats import summarize
 
     rows = summarize(records)
     if not rows:
@@ -46,8 +46,8 @@ def _print_summary(records: list[dict], stream=sys.stdout) -> None:
 
 
 def cmd_run(args: argparse.Namespace) -> int:
-    from harness.run import RunConfig, run_suites
-    from harness.suites import DEFAULT_SUITES, get_suite
+    from harness.runner.run import RunConfig, run_suites
+    from harness.runner.suites import DEFAULT_SUITES, get_suite
 
     suites = tuple(args.suite or DEFAULT_SUITES)
     try:
@@ -67,7 +67,7 @@ def cmd_run(args: argparse.Namespace) -> int:
     _print_summary(records)
     print(f"\n{len(records)} records in {Path(args.out) / 'results.jsonl'} ({time.monotonic() - t0:.0f} s)")
     if not args.no_report:
-        from harness.report import write_report
+        from harness.report.markdown import write_report
 
         path = write_report([args.out], Path(args.out) / "report")
         print(f"report: {path}")
@@ -76,7 +76,7 @@ def cmd_run(args: argparse.Namespace) -> int:
 
 def _check_floors(records: list[dict], suites: tuple[str, ...]) -> int:
     """Non-zero when a regression suite's agent falls below its success floor."""
-    from harness.suites import get_suite
+    from harness.runner.suites import get_suite
 
     bad = []
     for name in suites:
@@ -94,8 +94,8 @@ def _check_floors(records: list[dict], suites: tuple[str, ...]) -> int:
 
 
 def cmd_compare(args: argparse.Namespace) -> int:
-    from harness.results import load_results
-    from harness.stats import paired_comparison
+    from harness.runner.results import load_results
+    from harness.report.stats import paired_comparison
 
     records = [r for d in args.runs for r in load_results(Path(d) / "results.jsonl")]
     try:
@@ -108,7 +108,7 @@ def cmd_compare(args: argparse.Namespace) -> int:
 
 
 def cmd_report(args: argparse.Namespace) -> int:
-    from harness.report import write_report
+    from harness.report.markdown import write_report
 
     path = write_report(list(args.runs), Path(args.out) if args.out else Path(args.runs[0]) / "report")
     print(f"report: {path}")
@@ -117,8 +117,8 @@ def cmd_report(args: argparse.Namespace) -> int:
 
 def cmd_list(args: argparse.Namespace) -> int:
     from agents.registry import AGENTS, _load_builtin
-    from conceptfusion.encoder_registry import describe_encoders
-    from harness.suites import SUITES
+    from conceptfusion.perception.registry import describe_encoders
+    from harness.runner.suites import SUITES
 
     _load_builtin()
     print("suites:")
@@ -138,8 +138,8 @@ def cmd_list(args: argparse.Namespace) -> int:
 
 def add_eval_commands(sub) -> None:
     """Add ``run``, ``compare``, ``report`` and ``list`` to the ``cfharness`` subparsers."""
-    from harness.backends import BACKENDS
-    from harness.suites import DEFAULT_SUITES, SUITES
+    from harness.runner.backends import BACKENDS
+    from harness.runner.suites import DEFAULT_SUITES, SUITES
 
     run = sub.add_parser(
         "run", help="run evaluation suites for agents and write results + a report",

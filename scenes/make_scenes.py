@@ -13,8 +13,8 @@ import math
 from pathlib import Path
 from typing import Iterable
 
-from sim_envs.scene_format import save_scene
-from sim_envs.scene_gen_household import generate_household
+from sim_envs.scenes.format import save_scene
+from sim_envs.scenes.gen_household import generate_household
 
 __all__ = ["HOUSEHOLD_DIR", "SHIPPED_SEEDS", "household_path", "write_household_scenes", "render_overview"]
 
@@ -43,8 +43,8 @@ def render_overview(scene, width: int = 640, height: int = 480, *, wall_height: 
     """
     import numpy as np
 
-    from sim_envs.mujoco_camera import MujocoRGBDCamera
-    from sim_envs.mujoco_scene import build_mujoco
+    from sim_envs.mujoco.camera import MujocoRGBDCamera
+    from sim_envs.mujoco.scene import build_mujoco
 
     if not scene.rooms:
         raise ValueError(f"scene {scene.id}: an overview needs rooms; this scene has none")

@@ -11,7 +11,7 @@ import json
 import sys
 from pathlib import Path
 
-from sim_envs.episodes import episodes_text, generate_tabletop_episodes
+from sim_envs.scenes.episodes import episodes_text, generate_tabletop_episodes
 
 __all__ = ["GENERATOR_SEED", "COUNT", "build_files", "main"]
 

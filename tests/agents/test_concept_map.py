@@ -6,9 +6,9 @@ import pytest
 
 import sim_envs  # noqa: F401
 from agents.concept_map import ConceptMapper, MapperConfig
-from conceptfusion.encoders import ColorNameEncoder
-from conceptfusion.masks import make_proposer
-from sim_envs.assets import COLORS
+from conceptfusion.perception.encoders import ColorNameEncoder
+from conceptfusion.perception.masks.registry import make_proposer
+from sim_envs.assets.objects import COLORS
 
 
 def _scan(seed=3, frames=8):

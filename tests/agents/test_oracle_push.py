@@ -6,8 +6,8 @@ import numpy as np
 import pytest
 
 from agents.oracle_push import OraclePushAgent, footprint_corners
-from sim_envs.episodes import load_episodes
-from sim_envs.tabletop_rearrange import TabletopRearrangeEnv
+from sim_envs.scenes.episodes import load_episodes
+from sim_envs.envs.tabletop_rearrange import TabletopRearrangeEnv
 
 SHIPPED = Path(__file__).resolve().parents[2] / "scenes" / "tabletop" / "episodes-v1.jsonl"
 

@@ -4,9 +4,9 @@ import numpy as np
 import pytest
 
 from agents.oracle_search import OracleSearchAgent, descend
-from harness.tasks import EpisodeJob, run_episode
-from sim_envs.object_search import geodesic_field
-from sim_envs.search_episodes import default_search_episodes
+from harness.runner.tasks import EpisodeJob, run_episode
+from sim_envs.envs.object_search import geodesic_field
+from sim_envs.scenes.search_episodes import default_search_episodes
 
 
 def test_field_goes_around_a_wall_and_descent_reaches_the_goal():

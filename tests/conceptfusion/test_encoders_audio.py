@@ -8,8 +8,8 @@ import pytest
 
 torch = pytest.importorskip("torch")
 
-from conceptfusion.audio import AudioEncoder, OnnxAudioEncoder, check_waveforms, export_audio_onnx  # noqa: E402
-from conceptfusion.encoder_registry import make_encoder  # noqa: E402
+from conceptfusion.perception.audio import AudioEncoder, OnnxAudioEncoder, check_waveforms, export_audio_onnx  # noqa: E402
+from conceptfusion.perception.registry import make_encoder  # noqa: E402
 from conceptfusion.errors import CheckpointError, DtypeError, ShapeError  # noqa: E402
 
 RATE = 16000

@@ -11,10 +11,10 @@ torch = pytest.importorskip("torch")
 transformers = pytest.importorskip("transformers", reason="Hugging Face CLIP needs the perception extra")
 pytest.importorskip("tokenizers", reason="ONNX CLIP needs the perception extra")
 
-from conceptfusion.clip_hf import ClipPreprocess, HFClipConfig, HFClipEncoder, clip_preprocess, read_preprocess_config  # noqa: E402
-from conceptfusion.clip_onnx import OnnxClipEncoder, export_clip_to_onnx  # noqa: E402
-from conceptfusion.encoder_registry import make_encoder  # noqa: E402
-from conceptfusion.encoders import Encoder  # noqa: E402
+from conceptfusion.perception.clip_hf import ClipPreprocess, HFClipConfig, HFClipEncoder, clip_preprocess, read_preprocess_config  # noqa: E402
+from conceptfusion.perception.clip_onnx import OnnxClipEncoder, export_clip_to_onnx  # noqa: E402
+from conceptfusion.perception.registry import make_encoder  # noqa: E402
+from conceptfusion.perception.encoders import Encoder  # noqa: E402
 from conceptfusion.errors import CheckpointError, DtypeError, ShapeError  # noqa: E402
 
 PROJ = 24

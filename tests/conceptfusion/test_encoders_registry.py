@@ -5,8 +5,8 @@ import sys
 
 import pytest
 
-from conceptfusion.encoder_registry import ENCODERS, describe_encoders, make_encoder, parse_encoder_spec
-from conceptfusion.encoders import ColorNameEncoder, Encoder
+from conceptfusion.perception.registry import ENCODERS, describe_encoders, make_encoder, parse_encoder_spec
+from conceptfusion.perception.encoders import ColorNameEncoder, Encoder
 
 
 def test_color_builds_the_color_encoder():
@@ -54,6 +54,6 @@ def test_table_lists_every_name_with_a_description():
 
 
 def test_importing_the_registry_loads_no_heavy_library():
-    code = "import sys, conceptfusion.encoder_registry; print(sorted({'torch', 'transformers', 'onnxruntime'} & set(sys.modules)))"
+    code = "import sys, conceptfusion.perception.registry; print(sorted({'torch', 'transformers', 'onnxruntime'} & set(sys.modules)))"
     out = subprocess.run([sys.executable, "-c", code], capture_output=True, text=True, check=True).stdout.strip()
     assert out == "[]"

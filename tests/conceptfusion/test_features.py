@@ -4,7 +4,7 @@ import numpy as np
 import pytest
 
 from conceptfusion.errors import ShapeError
-from conceptfusion.features import (
+from conceptfusion.perception.features import (
     PixelFeatures,
     crop_masks,
     mask_bboxes,

@@ -3,8 +3,8 @@
 import numpy as np
 import pytest
 
-from conceptfusion.features import pixel_aligned_palette, region_features
-from conceptfusion.pipeline import frame_features
+from conceptfusion.perception.features import pixel_aligned_palette, region_features
+from conceptfusion.perception.pipeline import frame_features
 
 
 def _unit(x):

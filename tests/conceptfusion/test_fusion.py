@@ -5,8 +5,8 @@ import pytest
 
 from conceptfusion.cameras import intrinsics_from_fovy
 from conceptfusion.errors import DtypeError, PoseError, ShapeError
-from conceptfusion.features import PixelFeatures
-from conceptfusion.fusion import PointFusionMap
+from conceptfusion.perception.features import PixelFeatures
+from conceptfusion.map.fusion import PointFusionMap
 from conceptfusion.synthetic import Box, look_at, orbit_poses, render_boxes
 
 H, W = 48, 64
@@ -164,7 +164,7 @@ def test_bad_inputs_get_clear_errors():
 
 
 def test_compiled_frame_points_match_the_numpy_reference():
-    from conceptfusion import _kernels
+    from conceptfusion.map import _kernels
     from conceptfusion.cameras import backproject, normal_map, radial_confidence, transform_directions, transform_points
 
     pose = look_at((0.4, -0.3, 0.9), (0.0, 0.1, 0.0))

@@ -6,9 +6,9 @@ import pytest
 torch = pytest.importorskip("torch")
 pytest.importorskip("onnx", reason="exporting the tower needs the onnx package (dev extra)")
 
-from conceptfusion.encoders import COLOR_NAMES, ColorNameEncoder  # noqa: E402
-from conceptfusion.image_tower import EmbeddedEncoder, TowerConfig, export_tower_onnx, preprocess  # noqa: E402
-from conceptfusion.tower_training import CropSet, TrainConfig, augment, class_targets, retrieval_accuracy, train_tower  # noqa: E402
+from conceptfusion.perception.encoders import COLOR_NAMES, ColorNameEncoder  # noqa: E402
+from conceptfusion.perception.image_tower import EmbeddedEncoder, TowerConfig, export_tower_onnx, preprocess  # noqa: E402
+from tower_training.training import CropSet, TrainConfig, augment, class_targets, retrieval_accuracy, train_tower  # noqa: E402
 
 NAMES = ["red", "green", "blue", "yellow"]
 TOWER = TowerConfig(embed_dim=32, input_size=32, widths=(8, 16, 32, 32), blocks_per_stage=1)

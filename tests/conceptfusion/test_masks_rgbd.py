@@ -6,11 +6,11 @@ import numpy as np
 import pytest
 
 from conceptfusion.cameras import backproject, intrinsics_from_fovy, transform_points
-from conceptfusion.encoders import ColorNameEncoder
+from conceptfusion.perception.encoders import ColorNameEncoder
 from conceptfusion.errors import DtypeError, ShapeError
-from conceptfusion.masks import MaskProposer
-from conceptfusion.masks_rgbd import RGBDProposer, RGBDProposerConfig
-from conceptfusion.pipeline import frame_features
+from conceptfusion.perception.masks.registry import MaskProposer
+from conceptfusion.perception.masks.rgbd import RGBDProposer, RGBDProposerConfig
+from conceptfusion.perception.pipeline import frame_features
 from conceptfusion.synthetic import Box, look_at, orbit_poses, render_boxes, tabletop_boxes
 
 H, W = 240, 320

@@ -3,8 +3,8 @@
 import numpy as np
 import pytest
 
-from conceptfusion.encoders import ColorNameEncoder
-from conceptfusion.oracle import OracleFeatures
+from conceptfusion.perception.encoders import ColorNameEncoder
+from conceptfusion.perception.oracle import OracleFeatures
 
 
 def test_oracle_maps_ids_to_name_embeddings():

@@ -8,9 +8,9 @@ import trimesh
 
 from conceptfusion.cameras import intrinsics_from_fovy
 from conceptfusion.errors import MapFormatError, MapVersionError
-from conceptfusion.features import PixelFeatures
-from conceptfusion.fusion import PointFusionMap
-from conceptfusion.persistence import FORMAT_VERSION, export_ply, load_map, save_map
+from conceptfusion.perception.features import PixelFeatures
+from conceptfusion.map.fusion import PointFusionMap
+from conceptfusion.map.persistence import FORMAT_VERSION, export_ply, load_map, save_map
 from conceptfusion.synthetic import orbit_poses, render_boxes, tabletop_boxes
 
 H, W = 36, 48

@@ -4,10 +4,10 @@ import numpy as np
 import pytest
 
 from conceptfusion.cameras import intrinsics_from_fovy
-from conceptfusion.encoders import ColorNameEncoder
-from conceptfusion.fusion import PointFusionMap
-from conceptfusion.pipeline import frame_features
-from conceptfusion.query import (
+from conceptfusion.perception.encoders import ColorNameEncoder
+from conceptfusion.map.fusion import PointFusionMap
+from conceptfusion.perception.pipeline import frame_features
+from conceptfusion.map.query import (
     NEGATIVE_PHRASES,
     click_query_vector,
     connected_regions,

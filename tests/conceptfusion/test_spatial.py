@@ -5,8 +5,8 @@ import math
 import numpy as np
 import pytest
 
-from conceptfusion.regions import Region, region_from_points
-from conceptfusion.spatial import (
+from conceptfusion.map.regions import Region, region_from_points
+from conceptfusion.spatial.comparators import (
     COMPARATOR_NAMES,
     COMPARATORS,
     SpatialAnswer,

@@ -8,8 +8,8 @@ import pytest
 
 pytest.importorskip("pocketsphinx", reason="spoken queries need the audio extra")
 
-from conceptfusion.encoders import ColorNameEncoder  # noqa: E402
-from conceptfusion.speech import SpeechQueryEncoder  # noqa: E402
+from conceptfusion.perception.encoders import ColorNameEncoder  # noqa: E402
+from conceptfusion.perception.speech import SpeechQueryEncoder  # noqa: E402
 
 DATA = Path(__file__).parent / "data"
 VOCAB = ["red mug", "teddy bear", "yellow duck", "bottle of wine", "blue bowl", "xqzzy gadget"]

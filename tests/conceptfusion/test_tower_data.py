@@ -3,7 +3,7 @@
 import numpy as np
 import pytest
 
-from conceptfusion.tower_data import (
+from tower_training.data import (
     BACKGROUND_CLASS,
     SCENE_CLASS,
     SOURCES,
@@ -106,8 +106,8 @@ def test_crop_data_round_trips_through_npz(tmp_path):
 
 
 def test_rendered_views_give_labelled_crops_of_the_right_objects():
-    from sim_envs.assets import ASSETS, COLORS
-    from sim_envs.tower_views import ViewConfig, random_tabletop_views
+    from sim_envs.assets.objects import ASSETS, COLORS
+    from tower_training.views import ViewConfig, random_tabletop_views
 
     rng = np.random.default_rng(0)
     views = list(random_tabletop_views([5], 2, rng, ViewConfig(width=160, height=120)))

@@ -2,7 +2,7 @@
 
 import pytest
 
-from conceptfusion.persistence import load_map
+from conceptfusion.map.persistence import load_map
 from harness.cli import main
 
 

@@ -5,13 +5,13 @@ from __future__ import annotations
 import numpy as np
 import pytest
 
-from harness.map_ablation import segmentation_scores
-from harness.map_query import iou
-from harness.map_scan import load_shipped_scene, point_labels, scan_scene
-from harness.map_spatial import QUESTION_TYPES, distance_ok, generate_questions
-from harness.map_suites import MapJob, map_suite_jobs, run_map_job
-from harness.results import record_key
-from harness.run import RunConfig
+from harness.maps.ablation import segmentation_scores
+from harness.maps.query import iou
+from harness.maps.scan import load_shipped_scene, point_labels, scan_scene
+from harness.maps.spatial import QUESTION_TYPES, distance_ok, generate_questions
+from harness.maps.suites import MapJob, map_suite_jobs, run_map_job
+from harness.runner.results import record_key
+from harness.runner.run import RunConfig
 
 TABLETOP = "tabletop-0111"
 HOUSEHOLD = "household-0000"

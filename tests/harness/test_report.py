@@ -6,11 +6,11 @@ from pathlib import Path
 import numpy as np
 import pytest
 
-from harness.report import write_report
-from harness.results import append_record, make_record
-from sim_envs.episodes import SCENES_ROOT
-from sim_envs.floorplan import occupancy_grid
-from sim_envs.scene_format import load_scene
+from harness.report.markdown import write_report
+from harness.runner.results import append_record, make_record
+from sim_envs.scenes.episodes import SCENES_ROOT
+from sim_envs.scenes.floorplan import occupancy_grid
+from sim_envs.scenes.format import load_scene
 
 SCENE = "household/household-0000.json"
 

@@ -7,7 +7,7 @@ import warnings
 import numpy as np
 import pytest
 
-from harness.results import (
+from harness.runner.results import (
     RESULTS_VERSION, EpisodeKey, ResultsFormatError, agent_label, append_record, check_run_config, completed_keys,
     latest_records, load_results, make_record, read_run_config, record_key, repair_results, write_run_config,
 )

@@ -13,12 +13,12 @@ from pathlib import Path
 
 import pytest
 
-from harness.backends import run_jobs
+from harness.runner.backends import run_jobs
 from harness.commands import _check_floors
-from harness.results import load_results
-from harness.run import RunConfig, episode_jobs, run_suites
-from harness.stats import summarize
-from harness.suites import get_suite
+from harness.runner.results import load_results
+from harness.runner.run import RunConfig, episode_jobs, run_suites
+from harness.report.stats import summarize
+from harness.runner.suites import get_suite
 
 REPO = Path(__file__).resolve().parents[2]
 
@@ -216,7 +216,7 @@ def test_a_worker_that_dies_is_recorded_as_failed_and_the_run_goes_on(tmp_path, 
 def test_missing_ray_names_the_extra(monkeypatch):
     import builtins
 
-    from harness.backends import RayUnavailableError
+    from harness.runner.backends import RayUnavailableError
 
     real_import = builtins.__import__
 

@@ -5,8 +5,8 @@ import math
 import numpy as np
 import pytest
 
-from harness.results import make_record
-from harness.stats import (
+from harness.runner.results import make_record
+from harness.report.stats import (
     bootstrap_ci, mcnemar_exact, metric_value, paired_comparison, per_category, summarize, wilson_interval,
 )
 

@@ -5,11 +5,11 @@ from pathlib import Path
 
 import pytest
 
-from sim_envs.episodes import (
+from sim_envs.scenes.episodes import (
     SCENES_ROOT, Episode, EpisodeFormatError, EpisodeSet, Goal, generate_tabletop_episodes, load_episodes,
     resolve_scene, save_episodes,
 )
-from sim_envs.rearrange_eval import signed_line_distance
+from sim_envs.envs.rearrange_eval import signed_line_distance
 
 REPO = Path(__file__).resolve().parents[2]
 SHIPPED = REPO / "scenes" / "tabletop" / "episodes-v1.jsonl"

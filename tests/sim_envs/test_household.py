@@ -7,11 +7,11 @@ import math
 import numpy as np
 import pytest
 
-from sim_envs.floorplan import occupancy_grid, reachable_rooms
-from sim_envs.furniture import FURNITURE, MATERIALS, materials_xml
-from sim_envs.scene_format import Scene, load_scene, save_scene, scene_from_json
-from sim_envs.scene_gen import generate_tabletop
-from sim_envs.scene_gen_household import generate_household
+from sim_envs.scenes.floorplan import occupancy_grid, reachable_rooms
+from sim_envs.assets.furniture import FURNITURE, MATERIALS, materials_xml
+from sim_envs.scenes.format import Scene, load_scene, save_scene, scene_from_json
+from sim_envs.scenes.gen_tabletop import generate_tabletop
+from sim_envs.scenes.gen_household import generate_household
 
 
 @pytest.fixture(scope="module")

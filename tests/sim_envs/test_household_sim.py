@@ -10,12 +10,12 @@ from gymnasium.utils.env_checker import check_env
 
 import sim_envs  # noqa: F401  (registers the environments)
 from scenes.make_scenes import SHIPPED_SEEDS, household_path, write_household_scenes
-from sim_envs.mujoco_camera import MujocoRGBDCamera
-from sim_envs.mujoco_scene import build_mjcf, build_mujoco, split_labels
-from sim_envs.scene_format import load_scene
-from sim_envs.scene_gen_household import generate_household
-from sim_envs.scene_graph import furniture_aabbs, scene_graph
-from sim_envs.scene_scan import SceneScanEnv, room_sweep_trajectory
+from sim_envs.mujoco.camera import MujocoRGBDCamera
+from sim_envs.mujoco.scene import build_mjcf, build_mujoco, split_labels
+from sim_envs.scenes.format import load_scene
+from sim_envs.scenes.gen_household import generate_household
+from sim_envs.scenes.graph import furniture_aabbs, scene_graph
+from sim_envs.envs.scene_scan import SceneScanEnv, room_sweep_trajectory
 
 W, H = 160, 120
 
@@ -142,7 +142,7 @@ def test_household_mjcf_has_textured_walls_floors_and_furniture():
 
 def test_overview_picture_is_textured_and_needs_rooms():
     from scenes.make_scenes import render_overview
-    from sim_envs.scene_gen import generate_tabletop
+    from sim_envs.scenes.gen_tabletop import generate_tabletop
 
     rgb = render_overview(generate_household(0), 160, 120)
     assert rgb.shape == (120, 160, 3) and rgb.dtype == np.uint8

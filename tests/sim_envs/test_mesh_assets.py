@@ -6,9 +6,9 @@ import numpy as np
 import pytest
 
 from sim_envs import headless  # noqa: F401
-from sim_envs.assets import ALL_ASSETS, ASSETS, MESH_ASSETS, get_asset
-from sim_envs.mesh_assets import MESH_KINDS, mesh_asset_xml, mesh_name, mesh_texture, normalized_mesh
-from sim_envs.scene_format import Scene, SceneObject, Table
+from sim_envs.assets.objects import ALL_ASSETS, ASSETS, MESH_ASSETS, get_asset
+from sim_envs.assets.meshes import MESH_KINDS, mesh_asset_xml, mesh_name, mesh_texture, normalized_mesh
+from sim_envs.scenes.format import Scene, SceneObject, Table
 
 TABLE = Table((0.0, 0.0, 0.375), (1.2, 0.8, 0.05))
 
@@ -59,8 +59,8 @@ def test_assets_stay_procedural_and_mesh_kinds_are_added_beside_them():
 
 def test_mesh_objects_load_and_render_in_pybullet():
     p = pytest.importorskip("pybullet")
-    from sim_envs.pybullet_camera import PyBulletRGBDCamera
-    from sim_envs.pybullet_scene import build_pybullet
+    from sim_envs.pybullet.camera import PyBulletRGBDCamera
+    from sim_envs.pybullet.scene import build_pybullet
 
     client = p.connect(p.DIRECT)
     try:
@@ -78,8 +78,8 @@ def test_mesh_objects_load_and_render_in_pybullet():
 
 def test_mesh_objects_compile_and_render_in_mujoco():
     mujoco = pytest.importorskip("mujoco")
-    from sim_envs.assets import material_xml
-    from sim_envs.mujoco_camera import MujocoRGBDCamera
+    from sim_envs.assets.objects import material_xml
+    from sim_envs.mujoco.camera import MujocoRGBDCamera
 
     scene = mesh_scene()
     bodies = "".join(

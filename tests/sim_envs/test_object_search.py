@@ -6,9 +6,9 @@ import numpy as np
 import pytest
 from gymnasium.utils.env_checker import check_env
 
-from sim_envs.episodes import Episode, Goal
-from sim_envs.object_search import ObjectSearchEnv, box_distance_xy, geodesic_to_goal
-from sim_envs.search_episodes import default_search_episodes
+from sim_envs.scenes.episodes import Episode, Goal
+from sim_envs.envs.object_search import ObjectSearchEnv, box_distance_xy, geodesic_to_goal
+from sim_envs.scenes.search_episodes import default_search_episodes
 
 
 @pytest.fixture(scope="module")

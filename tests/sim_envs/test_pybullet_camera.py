@@ -6,9 +6,9 @@ import numpy as np
 import pytest
 
 from conceptfusion.cameras import backproject, transform_points
-from sim_envs.pybullet_camera import PyBulletRGBDCamera, forget_client
-from sim_envs.pybullet_scene import build_pybullet, primitive_shapes, texture_png
-from sim_envs.scene_format import Scene, SceneObject, Table
+from sim_envs.pybullet.camera import PyBulletRGBDCamera, forget_client
+from sim_envs.pybullet.scene import build_pybullet, primitive_shapes, texture_png
+from sim_envs.scenes.format import Scene, SceneObject, Table
 
 p = pytest.importorskip("pybullet")
 

@@ -7,11 +7,11 @@ import math
 import numpy as np
 import pytest
 
-from sim_envs.scene_format import Scene, SceneObject, Table
-from sim_envs.tabletop_sim import PUSH_HEIGHT
+from sim_envs.scenes.format import Scene, SceneObject, Table
+from sim_envs.envs.tabletop_sim import PUSH_HEIGHT
 
 pytest.importorskip("pybullet")
-from sim_envs.pybullet_tabletop import PyBulletTabletop  # noqa: E402
+from sim_envs.pybullet.tabletop import PyBulletTabletop  # noqa: E402
 
 TABLE = Table((0.0, 0.0, 0.375), (1.2, 0.8, 0.05))
 TOP = TABLE.top_z
@@ -117,7 +117,7 @@ def test_bad_push_arguments_are_named(sim):
 
 
 def test_transit_moves_are_planned_collision_free_with_ompl(sim):
-    from sim_envs.pybullet_tabletop import HOME_JOINTS
+    from sim_envs.pybullet.tabletop import HOME_JOINTS
 
     sim._place_obstacles()
     assert sim.kin.config_free(np.array(HOME_JOINTS))

@@ -5,11 +5,11 @@ import dataclasses
 import numpy as np
 import pytest
 
-from sim_envs.assets import MESH_ASSETS
-from sim_envs.mujoco_camera import MujocoRGBDCamera
-from sim_envs.mujoco_scene import build_mujoco
-from sim_envs.scene_format import scene_from_json
-from sim_envs.scene_gen import generate_tabletop
+from sim_envs.assets.objects import MESH_ASSETS
+from sim_envs.mujoco.camera import MujocoRGBDCamera
+from sim_envs.mujoco.scene import build_mujoco
+from sim_envs.scenes.format import scene_from_json
+from sim_envs.scenes.gen_tabletop import generate_tabletop
 
 
 @pytest.mark.parametrize("kind", ["duck", "soccer_ball", "teddy"])

@@ -9,11 +9,11 @@ from gymnasium.utils.env_checker import check_env
 
 import sim_envs  # noqa: F401  (registers the environments)
 from conceptfusion.cameras import backproject, transform_points
-from sim_envs.mujoco_camera import MujocoRGBDCamera
-from sim_envs.mujoco_scene import build_mujoco
-from sim_envs.scene_format import load_scene, save_scene
-from sim_envs.scene_gen import generate_tabletop
-from sim_envs.scene_graph import object_aabbs
+from sim_envs.mujoco.camera import MujocoRGBDCamera
+from sim_envs.mujoco.scene import build_mujoco
+from sim_envs.scenes.format import load_scene, save_scene
+from sim_envs.scenes.gen_tabletop import generate_tabletop
+from sim_envs.scenes.graph import object_aabbs
 
 W, H = 160, 120
 

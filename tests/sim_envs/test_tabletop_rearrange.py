@@ -6,12 +6,12 @@ import pytest
 from gymnasium.utils.env_checker import check_env
 
 import sim_envs  # noqa: F401  (registers the environments)
-from sim_envs.episodes import Episode, Goal
-from sim_envs.rearrange_eval import evaluate, signed_line_distance
-from sim_envs.scene_format import Scene, SceneObject
-from sim_envs.scene_gen import generate_tabletop
-from sim_envs.mujoco_tabletop import MujocoTabletop
-from sim_envs.tabletop_rearrange import TabletopRearrangeEnv, make_backend
+from sim_envs.scenes.episodes import Episode, Goal
+from sim_envs.envs.rearrange_eval import evaluate, signed_line_distance
+from sim_envs.scenes.format import Scene, SceneObject
+from sim_envs.scenes.gen_tabletop import generate_tabletop
+from sim_envs.mujoco.tabletop import MujocoTabletop
+from sim_envs.envs.tabletop_rearrange import TabletopRearrangeEnv, make_backend
 
 W, H = 64, 48
 
@@ -169,7 +169,7 @@ def test_vector_env_runs_a_few_steps():
 
 
 def test_pybullet_backend_is_selected_by_name():
-    pytest.importorskip("sim_envs.pybullet_tabletop", reason="the PyBullet backend is not installed")
+    pytest.importorskip("sim_envs.pybullet.tabletop", reason="the PyBullet backend is not installed")
     env = TabletopRearrangeEnv(backend="pybullet", width=W, height=H)
     obs, info = env.reset(seed=1)
     assert type(env.sim).__name__ == "PyBulletTabletop" and obs["rgb"].shape == (H, W, 3)

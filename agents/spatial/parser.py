@@ -1,0 +1,81 @@
+"""Natural-language spatial questions -> ONE comparator call, e.g. ``howFar(chair, sofa)``.
+
+The public face of the parsers:
+
+* :class:`SpatialQuestionParser` - the protocol: ``parse(question) -> ParseResult``.
+* :class:`PatternParser` - the default, offline phrase-pattern parser
+  (:mod:`agents.spatial.grammar`).
+* :class:`LLMParser` - the paper's approach: its prompt sent to an OpenAI-compatible
+  chat-completions server (:mod:`agents.spatial.llm`).
+* :data:`PARSERS` / :func:`make_parser` - the lookup table of backends by name.
+
+The function names are the paper's eight (:data:`conceptfusion.spatial.comparators.COMPARATOR_NAMES`);
+``conceptfusion.spatial.comparators.get_comparator(result.function)`` runs the call on two regions.
+"""
+
+from __future__ import annotations
+
+import difflib
+from typing import Callable
+
+from agents.spatial.grammar import PatternParser, normalise_question, parse_question
+from agents.spatial.llm import PAPER_PROMPT, LLMParser, LLMParserConfig
+from agents.spatial.signature import (
+    SELF_REFERENCE,
+    ParseResult,
+    SpatialQuestionParser,
+    cannot_parse,
+    clean_noun_phrase,
+    parse_signature,
+    parsed,
+)
+
+__all__ = [
+    "SpatialQuestionParser",
+    "ParseResult",
+    "PatternParser",
+    "LLMParser",
+    "LLMParserConfig",
+    "PAPER_PROMPT",
+    "SELF_REFERENCE",
+    "PARSERS",
+    "make_parser",
+    "parse_question",
+    "parse_signature",
+    "normalise_question",
+    "clean_noun_phrase",
+    "parsed",
+    "cannot_parse",
+]
+
+
+def _make_llm(**kwargs) -> LLMParser:
+    return LLMParser(LLMParserConfig(**kwargs))
+
+
+def _make_pattern(**kwargs) -> PatternParser:
+    if kwargs:
+        raise TypeError(f"the pattern parser takes no options, got {sorted(kwargs)}")
+    return PatternParser()
+
+
+PARSERS: dict[str, Callable[..., SpatialQuestionParser]] = {
+    "pattern": _make_pattern,
+    "llm": _make_llm,
+}
+"""Parser backends by name; ``"llm"`` takes the fields of :class:`LLMParserConfig`."""
+
+
+def make_parser(name: str = "pattern", **kwargs) -> SpatialQuestionParser:
+    """Build the parser backend ``name`` (``"pattern"`` or ``"llm"``) with its options.
+
+    Raises ``ValueError`` naming the nearest valid names for an unknown ``name``.
+    """
+    if not isinstance(name, str):
+        raise TypeError(f"name: expected a str, got {type(name).__name__}")
+    factory = PARSERS.get(name)
+    if factory is None:
+        close = difflib.get_close_matches(name, list(PARSERS), n=2, cutoff=0.4)
+        hint = f"; did you mean {', '.join(close)}?" if close else ""
+        raise ValueError(f"unknown spatial parser {name!r}{hint} (valid: {', '.join(PARSERS)})")
+    return factory(**kwargs)

@@ -1,0 +1,51 @@
+"""Looking names up in tables of named things, with "did you mean" for the nearest ones.
+
+Agents, encoders, proposers, suites, assets, backends and planners are all plain dicts (or
+sequences) keyed by name; an unknown name raises :class:`~conceptfusion.errors.UnknownNameError`
+(a ``ValueError``) that names the nearest valid ones (:func:`difflib.get_close_matches`).
+"""
+
+from __future__ import annotations
+
+import difflib
+from typing import Iterable, Mapping, TypeVar
+
+from conceptfusion.errors import UnknownNameError
+
+__all__ = ["nearest_names", "did_you_mean", "unknown_name_error", "lookup"]
+
+V = TypeVar("V")
+
+
+def nearest_names(name: object, choices: Iterable[str], *, n: int = 3, cutoff: float = 0.4) -> list[str]:
+    """Up to ``n`` of ``choices`` closest to ``name`` (most similar first; may be empty)."""
+    return difflib.get_close_matches(str(name), [str(c) for c in choices], n=n, cutoff=cutoff)
+
+
+def did_you_mean(name: object, choices: Iterable[str], *, n: int = 3, cutoff: float = 0.4) -> str:
+    """``"; did you mean 'a', 'b'?"`` for the nearest choices, or ``""`` when none is close."""
+    near = nearest_names(name, choices, n=n, cutoff=cutoff)
+    return f"; did you mean {', '.join(repr(c) for c in near)}?" if near else ""
+
+
+def unknown_name_error(
+    kind: str, name: object, choices: Iterable[str], *, n: int = 3, cutoff: float = 0.4,
+    listing: str | None = None, error: type[Exception] = UnknownNameError,
+) -> Exception:
+    """The error for an unknown ``name`` of a ``kind`` ("agent", "suite", ...), not raised.
+
+    The message reads ``unknown KIND 'NAME'; did you mean ...? (KINDs: a, b, c)``; ``listing``
+    replaces the text in brackets (``""`` drops it).
+    """
+    choices = [str(c) for c in choices]
+    hint = did_you_mean(name, choices, n=n, cutoff=cutoff)
+    tail = f"{kind}s: {', '.join(choices)}" if listing is None else listing
+    return error(f"unknown {kind} {name!r}{hint}" + (f" ({tail})" if tail else ""))
+
+
+def lookup(table: Mapping[str, V], name: object, kind: str, **kwargs) -> V:
+    """``table[name]``, or :func:`unknown_name_error` raised (keyword arguments go to it)."""
+    try:
+        return table[name]  # type: ignore[index]
+    except (KeyError, TypeError):
+        raise unknown_name_error(kind, name, table, **kwargs) from None

@@ -1,0 +1,135 @@
+"""Encoders by name: the one lookup table the command line and the harness use.
+
+A spec is ``NAME`` or ``NAME:ARGUMENT``:
+
+- ``color``: :class:`~conceptfusion.perception.encoders.ColorNameEncoder` (``Encoder``; tests, demo).
+- ``minilm-text``: the offline MiniLM text tower (``TextEncoder``: text only).
+- ``hf:HUB_ID`` or ``hf:/local/dir``: Hugging Face CLIP (``Encoder``; :mod:`conceptfusion.perception.clip_hf`).
+- ``onnx:DIR``: CLIP exported to ONNX (``Encoder``; :mod:`conceptfusion.perception.clip_onnx`).
+- ``embedded`` or ``embedded:DIR``: the embedded image tower + MiniLM text tower (``Encoder``);
+  without an argument, the weights shipped with the package (:data:`DEFAULT_ENCODER`).
+- ``audio-onnx:DIR``: an audio-language encoder in ONNX (``AudioEncoder``; :mod:`conceptfusion.perception.audio`).
+
+``embedded`` is registered only where :mod:`conceptfusion.perception.image_tower` exists. Oracle
+features (:mod:`conceptfusion.perception.oracle`) read the simulator's segmentation and are not an
+encoder, so they are not listed here. Factories import their heavy dependencies only when
+called, so importing this module is cheap.
+"""
+
+from __future__ import annotations
+
+import difflib
+import importlib.util
+from typing import Callable
+
+__all__ = ["ENCODERS", "DEFAULT_ENCODER", "parse_encoder_spec", "make_encoder", "describe_encoders"]
+
+DEFAULT_ENCODER = "embedded"
+"""The spec the harness uses when none is given: the shipped embedded tower (offline, CPU)."""
+
+
+def _no_arg(name: str, arg: str | None) -> None:
+    if arg is not None:
+        raise ValueError(f"encoder {name!r} takes no argument, got {name}:{arg}")
+
+
+def _need_arg(name: str, arg: str | None, what: str) -> str:
+    if arg is None or not arg.strip():
+        raise ValueError(f"encoder {name!r} needs {what}: expected {name}:{what.upper().replace(' ', '_')}")
+    return arg.strip()
+
+
+def _color(arg: str | None):
+    """ColorNameEncoder: a tiny deterministic test encoder that knows only colours."""
+    from conceptfusion.perception.encoders import ColorNameEncoder
+
+    _no_arg("color", arg)
+    return ColorNameEncoder()
+
+
+def _minilm(arg: str | None):
+    """all-MiniLM-L6-v2 text tower, offline, 384-d (text only)."""
+    from conceptfusion.perception.text_tower import MiniLMTextEncoder
+
+    _no_arg("minilm-text", arg)
+    return MiniLMTextEncoder()
+
+
+def _hf(arg: str | None):
+    """Hugging Face CLIP: hf:HUB_ID or hf:/local/dir."""
+    from conceptfusion.perception.clip_hf import HFClipEncoder
+
+    return HFClipEncoder(_need_arg("hf", arg, "hub id or dir"))
+
+
+def _onnx(arg: str | None):
+    """CLIP exported to ONNX, run by onnxruntime: onnx:DIR."""
+    from conceptfusion.perception.clip_onnx import OnnxClipEncoder
+
+    return OnnxClipEncoder(_need_arg("onnx", arg, "dir"))
+
+
+def _embedded(arg: str | None):
+    """Embedded image tower (ONNX) aligned to the MiniLM text tower: embedded (shipped) or embedded:DIR."""
+    from conceptfusion.perception.image_tower import SHIPPED_TOWER_DIR, EmbeddedEncoder
+    from conceptfusion.perception.text_tower import MiniLMTextEncoder
+
+    tower_dir = SHIPPED_TOWER_DIR if arg is None else _need_arg("embedded", arg, "dir")
+    return EmbeddedEncoder(tower_dir, MiniLMTextEncoder())
+
+
+def _audio_onnx(arg: str | None):
+    """Audio-language encoder exported to ONNX: audio-onnx:DIR."""
+    from conceptfusion.perception.audio import OnnxAudioEncoder
+
+    return OnnxAudioEncoder(_need_arg("audio-onnx", arg, "dir"))
+
+
+ENCODERS: dict[str, Callable[[str | None], object]] = {
+    "color": _color,
+    "minilm-text": _minilm,
+    "hf": _hf,
+    "onnx": _onnx,
+    "audio-onnx": _audio_onnx,
+}
+"""Encoder name -> factory taking the spec's argument (``None`` when the spec has none)."""
+
+if importlib.util.find_spec("conceptfusion.perception.image_tower") is not None:
+    ENCODERS["embedded"] = _embedded
+
+
+def parse_encoder_spec(spec: str) -> tuple[str, str | None]:
+    """Split ``"NAME:ARGUMENT"`` into ``(name, argument)``; ``argument`` is ``None`` without a colon.
+
+    Raises:
+        TypeError: ``spec`` is not a string.
+        ValueError: the name is empty or unknown (with the nearest valid names).
+    """
+    if not isinstance(spec, str):
+        raise TypeError(f"encoder spec: expected a string such as 'hf:openai/clip-vit-base-patch32', got {type(spec).__name__}")
+    name, sep, arg = spec.strip().partition(":")
+    name = name.strip().lower()
+    if name not in ENCODERS:
+        valid = sorted(ENCODERS)
+        near = difflib.get_close_matches(name, valid, n=3, cutoff=0.5)
+        hint = f"; did you mean {', '.join(near)}?" if near else ""
+        if "/" in spec and not sep:
+            hint += f" (a model needs a prefix: hf:{spec.strip()} for Hugging Face, onnx:{spec.strip()} for an ONNX folder)"
+        raise ValueError(f"unknown encoder {name!r}: expected one of {', '.join(valid)}{hint}")
+    return name, (arg if sep else None)
+
+
+def make_encoder(spec: str):
+    """Build the encoder a spec names (see the module docstring for the table).
+
+    Raises:
+        ValueError: unknown name (with the nearest valid names) or a missing/extra argument.
+        FileNotFoundError, CheckpointError, MissingDependencyError: from the encoder itself.
+    """
+    name, arg = parse_encoder_spec(spec)
+    return ENCODERS[name](arg)
+
+
+def describe_encoders() -> dict[str, str]:
+    """One line per registered encoder name, for ``--help`` texts."""
+    return {name: (factory.__doc__ or "").strip().splitlines()[0] for name, factory in sorted(ENCODERS.items())}

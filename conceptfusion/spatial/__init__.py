@@ -1,0 +1,1 @@
+"""conceptfusion.spatial."""

@@ -1,0 +1,195 @@
+"""Scans and maps for the map suites: render a shipped scene, fuse a map, label map points.
+
+Shared by :mod:`harness.maps.query`, :mod:`harness.maps.ablation` and :mod:`harness.maps.spatial`.
+Everything here is deterministic: a scene id, a trajectory and image size fix the frames.
+
+Label images: every rendered pixel carries one label, objects ``0..n-1`` (the scene's object
+order), furniture ``n..n+F-1``, then the table top and legs (``"table"``) and the floor plane
+(``"floor"``) of tabletop scenes; -1 elsewhere (walls, room floors, sky). Oracle features read
+these labels (privileged), so the oracle also knows furniture, the table and the floor.
+"""
+
+from __future__ import annotations
+
+import functools
+from dataclasses import dataclass
+
+import numpy as np
+
+from sim_envs.scenes.episodes import SCENES_ROOT
+from sim_envs.scenes.format import Scene, load_scene
+
+__all__ = [
+    "SCENE_KINDS", "ScanFrame", "SceneScan", "shipped_scene_ids", "load_shipped_scene", "scan_scene",
+    "render_views", "scene_mapper", "fuse_frames", "point_labels",
+]
+
+SCENE_KINDS = ("tabletop", "household")
+
+
+@dataclass
+class ScanFrame:
+    """One posed RGB-D frame with its label image.
+
+    Shape:
+        ``rgb`` (H, W, 3) uint8, ``depth`` (H, W) float32 metres, ``K`` (3, 3),
+        ``cam_to_world`` (4, 4) OpenCV, ``labels`` (H, W) int32 (see the module docstring).
+    """
+
+    rgb: np.ndarray
+    depth: np.ndarray
+    K: np.ndarray
+    cam_to_world: np.ndarray
+    labels: np.ndarray
+
+    def observation(self) -> dict:
+        """The frame as a mapper observation (``rgb``, ``depth``, ``K``, ``cam_to_world``)."""
+        return {"rgb": self.rgb, "depth": self.depth, "K": self.K, "cam_to_world": self.cam_to_world}
+
+
+@dataclass
+class SceneScan:
+    """A scene, its simulation, its ground truth and the frames of one scan."""
+
+    scene: Scene
+    sim: object
+    """The :class:`~sim_envs.mujoco.scene.MujocoScene` (for extra views)."""
+    frames: list[ScanFrame]
+    label_names: dict[int, str]
+    """Label id -> name (objects, furniture, ``"table"``, ``"floor"``)."""
+    object_boxes: np.ndarray
+    """Ground-truth object boxes, (n, 2, 3): lower and upper corners."""
+    graph: dict
+    """The ground-truth scene graph (:func:`sim_envs.scenes.graph.scene_graph`)."""
+    geom_labels: np.ndarray
+    """Label per geom, (ngeom,) int32."""
+
+    @property
+    def num_objects(self) -> int:
+        return len(self.scene.objects)
+
+
+def shipped_scene_ids(kind: str) -> list[str]:
+    """Ids of the shipped scenes of one kind (``"tabletop"`` or ``"household"``), sorted."""
+    if kind not in SCENE_KINDS:
+        raise ValueError(f"kind: expected one of {SCENE_KINDS}, got {kind!r}")
+    return sorted(p.stem for p in (SCENES_ROOT / kind).glob(f"{kind}-*.json"))
+
+
+def load_shipped_scene(scene_id: str) -> Scene:
+    """A shipped scene by id (``"tabletop-0111"``, ``"household-0000"``)."""
+    kind = str(scene_id).split("-")[0]
+    if kind not in SCENE_KINDS:
+        raise ValueError(f"scene_id: expected 'tabletop-NNNN' or 'household-NNNN', got {scene_id!r}")
+    path = SCENES_ROOT / kind / f"{scene_id}.json"
+    if not path.exists():
+        raise ValueError(f"scene_id: no shipped scene {scene_id!r} (shipped: {', '.join(shipped_scene_ids(kind)[:5])}, ...)")
+    return load_scene(path)
+
+
+def _geom_labels(sim) -> tuple[np.ndarray, dict[int, str]]:
+    scene = sim.scene
+    labels = np.asarray(sim.geom_labels(), np.int32).copy()
+    n, nf = len(scene.objects), len(scene.furniture)
+    names = {i: o.name for i, o in enumerate(scene.objects)}
+    names.update({n + j: f.name for j, f in enumerate(scene.furniture)})
+    if scene.table is not None:
+        model = sim.model
+        geom_names = [model.geom(g).name for g in range(model.ngeom)]
+        table = [g for g, name in enumerate(geom_names) if name == "table_top" or name.startswith("table_leg")]
+        floor = [g for g, name in enumerate(geom_names) if name == "floor"]
+        labels[table] = n + nf
+        names[n + nf] = "table"
+        if floor:
+            labels[floor] = n + nf + 1
+            names[n + nf + 1] = "floor"
+    return labels, names
+
+
+def scan_scene(scene: Scene, *, frames: int, width: int, height: int) -> SceneScan:
+    """Render the standard scan of a scene: an orbit around the table (tabletop) or a
+    room-by-room sweep (household), ``frames`` frames of ``width`` x ``height`` pixels."""
+    from sim_envs.mujoco.scene import build_mujoco
+    from sim_envs.scenes.graph import object_aabbs, scene_graph
+    from sim_envs.envs.scene_scan import scan_trajectory
+
+    if frames < 1 or width < 8 or height < 8:
+        raise ValueError(f"scan: expected frames >= 1 and an image of at least 8x8, got {frames} frames of {width}x{height}")
+    sim = build_mujoco(scene)
+    labels, names = _geom_labels(sim)
+    scan = SceneScan(scene, sim, [], names, object_aabbs(sim), scene_graph(sim), labels)
+    scan.frames = render_views(scan, scan_trajectory(scene, frames), width, height)
+    return scan
+
+
+def render_views(scan: SceneScan, poses: list[tuple], width: int, height: int) -> list[ScanFrame]:
+    """Frames from (eye, target) pairs, with label images."""
+    from sim_envs.mujoco.camera import MujocoRGBDCamera
+
+    cam = MujocoRGBDCamera(scan.sim.model, scan.sim.data, width, height, geom_object=scan.geom_labels)
+    out = []
+    try:
+        for eye, target in poses:
+            cam.set_pose(eye, target)
+            f = cam.render()
+            out.append(ScanFrame(f.rgb.copy(), f.depth.copy(), f.K.copy(), f.cam_to_world.copy(), f.segmentation.astype(np.int32)))
+    finally:
+        cam.close()
+    return out
+
+
+@functools.lru_cache(maxsize=4)
+def _encoder(name: str):
+    if name == "oracle":
+        from conceptfusion.perception.text_tower import MiniLMTextEncoder
+
+        return MiniLMTextEncoder()
+    from conceptfusion.perception.registry import make_encoder
+
+    return make_encoder(name)
+
+
+def scene_mapper(encoder: str, proposer: str = "rgbd", *, persistent: bool = True):
+    """A :class:`~agents.concept_map.ConceptMapper` as :func:`agents.builtin.make_mapper`
+    builds it, with the encoder loaded once per process."""
+    from agents.builtin import ORACLE_MIN_SCORE
+    from agents.concept_map import ConceptMapper, MapperConfig
+    from conceptfusion.perception.masks.registry import make_proposer
+
+    enc = _encoder(encoder)
+    if encoder == "oracle":
+        return ConceptMapper(enc, oracle=True, config=MapperConfig(persistent=persistent, min_score=ORACLE_MIN_SCORE))
+    floor = getattr(enc, "info", {}).get("metrics", {}).get("score_floor") if hasattr(enc, "info") else None
+    return ConceptMapper(enc, make_proposer(proposer), MapperConfig(persistent=persistent, min_score=floor))
+
+
+def fuse_frames(mapper, scan: SceneScan, frames: list[ScanFrame] | None = None):
+    """Reset ``mapper`` and fuse ``frames`` (default: the whole scan); returns the mapper."""
+    mapper.reset(scan.label_names if mapper.oracle else None)
+    for f in scan.frames if frames is None else frames:
+        mapper.integrate(f.observation(), segmentation=f.labels)
+    return mapper
+
+
+def point_labels(points_n3: np.ndarray, boxes_k23: np.ndarray, *, grow: float = 0.01, base: float = 0.005) -> np.ndarray:
+    """Ground-truth object of each map point: the smallest box that contains it, -1 for none.
+
+    Boxes are grown by ``grow`` metres sideways and upwards; their bottom is raised by
+    ``base`` metres instead, so the surface an object stands on (table, shelf, the floor of
+    its box's footprint) does not count as the object.
+
+    Shape:
+        ``points_n3`` (N, 3), ``boxes_k23`` (K, 2, 3) -> (N,) int64.
+    """
+    pts = np.asarray(points_n3, np.float64).reshape(-1, 3)
+    boxes = np.asarray(boxes_k23, np.float64).reshape(-1, 2, 3)
+    out = np.full(len(pts), -1, np.int64)
+    best = np.full(len(pts), np.inf)
+    for k, (lo, hi) in enumerate(boxes):
+        lo_g = lo - grow
+        lo_g[2] = lo[2] + base
+        inside = np.all((pts >= lo_g) & (pts <= hi + grow), axis=1)
+        vol = float(np.prod(hi + grow - lo_g))
+        take = inside & (vol < best)
+        out[take], best[take] = k, vol
+    return out

@@ -1,0 +1,311 @@
+"""A Markdown report of one or more evaluation runs, with its PNG figures.
+
+:func:`write_report` reads run folders (their ``results.jsonl``) or takes records directly and
+writes ``report.md`` plus the figures it links into one folder, every file atomically:
+
+- a run summary (episodes, statuses, suites, agents, encoders, total wall time);
+- per suite, a table of every (agent, encoder) with success and SPL and their 95% intervals,
+  the other metrics present and the wall time per episode, and a bar chart of success;
+- per suite, paired comparisons of every map-equipped agent against every map-free one
+  (``extras.uses_map``; when some group lacks it, every pair of groups is compared);
+- per suite, success per goal category;
+- for agents whose records carry ``extras.path_xy``, a top-down view of a few episodes over the
+  floor plan of ``extras.scene`` (a path under ``scenes/``) with start and goal;
+- for records with ``extras.heatmap_npz`` (``points`` (N, 3), ``values`` (N,)), a top-down
+  heatmap. A relative path is taken from the run folder the record came from (from
+  ``base_dir`` for records passed directly).
+
+What cannot be drawn (no categories, a missing scene or heatmap file) is skipped, and the
+report's last section says what was skipped and why.
+"""
+
+from __future__ import annotations
+
+import math
+import os
+import re
+from collections import Counter
+from pathlib import Path
+
+import numpy as np
+
+from conceptfusion.io_utils import atomic_write_bytes, atomic_write_text
+from harness.report import plots as report_plots
+from harness.runner.results import RESULTS_FILE, load_results, record_key
+from harness.report.stats import group_key, paired_comparison, per_category, summarize
+
+__all__ = ["write_report", "REPORT_FILE"]
+
+REPORT_FILE = "report.md"
+_PATH_EPISODES = 3
+_MAX_HEATMAPS = 4
+_MAX_PAIRS = 24
+
+
+def _collect(inputs, base_dir) -> list[tuple[dict, Path | None]]:
+    """(record, folder its relative paths start from) for every input."""
+    items = [inputs] if isinstance(inputs, (str, os.PathLike)) else list(inputs)
+    if not items:
+        raise ValueError("write_report: expected run folders or records, got an empty sequence")
+    out: list[tuple[dict, Path | None]] = []
+    for item in items:
+        if isinstance(item, dict):
+            out.append((item, Path(base_dir) if base_dir is not None else None))
+        elif isinstance(item, (str, os.PathLike)):
+            p = Path(item)
+            results = p / RESULTS_FILE if p.is_dir() else p
+            if not results.is_file():
+                raise FileNotFoundError(f"write_report: no results at {results} (expected a run folder holding "
+                                        f"{RESULTS_FILE}, or a results file)")
+            out.extend((r, results.parent) for r in load_results(results))
+        else:
+            raise TypeError(f"write_report: expected run folders (paths) or records (dicts), got {type(item).__name__}")
+    return out
+
+
+def _cell(text) -> str:
+    return str(text).replace("|", "\\|")
+
+
+def _alt(text) -> str:
+    return str(text).replace("[", "(").replace("]", ")")
+
+
+def _fmt(stat) -> str:
+    if stat is None:
+        return "-"
+    if math.isnan(stat.low):
+        return f"{stat.mean:.2f}"
+    return f"{stat.mean:.2f} [{stat.low:.2f}, {stat.high:.2f}]"
+
+
+def _fmt_seconds(s: float) -> str:
+    if not math.isfinite(s):
+        return "-"
+    if s < 120:
+        return f"{s:.1f} s"
+    h, rem = divmod(int(round(s)), 3600)
+    return f"{h}:{rem // 60:02d}:{rem % 60:02d}"
+
+
+class _Writer:
+    """Collects figure files (unique names) and skipped-item notes while the report is built."""
+
+    def __init__(self, out_dir: Path):
+        self.out_dir = out_dir
+        self.names: set[str] = set()
+        self.skipped: list[str] = []
+
+    def figure(self, stem: str, png: bytes) -> str:
+        base = re.sub(r"[^A-Za-z0-9._-]+", "-", stem).strip("-") or "figure"
+        name, i = f"{base}.png", 1
+        while name in self.names:
+            i += 1
+            name = f"{base}-{i}.png"
+        self.names.add(name)
+        atomic_write_bytes(self.out_dir / name, png)
+        return name
+
+    def skip(self, what: str, why: str) -> None:
+        self.skipped.append(f"- {what}: {why}")
+
+
+def _summary_section(records) -> list[str]:
+    statuses = Counter(r["status"] for r in records)
+    walls = [float(r["timings"]["wall_s"]) for r in records if "wall_s" in (r.get("timings") or {})]
+    groups = {group_key(r) for r in records}
+    return [
+        "## Run summary", "",
+        f"- episodes: {len(records)} ({', '.join(f'{k} {v}' for k, v in sorted(statuses.items()))})",
+        f"- runs: {', '.join(sorted({str(r.get('run_id')) for r in records}))}",
+        f"- suites: {', '.join(sorted({r['suite'] for r in records}))}",
+        f"- agents: {', '.join(sorted({g[1] for g in groups}))}",
+        f"- encoders: {', '.join(sorted({g[2] for g in groups}))}",
+        f"- total episode wall time: {_fmt_seconds(sum(walls)) if walls else 'not recorded'}", "",
+    ]
+
+
+def _suite_table(rows) -> list[str]:
+    others = sorted({m for r in rows for m in r.metrics} - {"success", "spl"})
+    head = ["agent", "encoder", "n", "failed/timeout", "success [95% CI]", "SPL [95% CI]", *others, "s/episode"]
+    lines = ["| " + " | ".join(head) + " |", "|" + "---|" * len(head)]
+    for r in rows:
+        cells = [_cell(r.agent), _cell(r.encoder), str(r.n), f"{r.n_failed}/{r.n_timeout}",
+                 _fmt(r.metrics.get("success")), _fmt(r.metrics.get("spl")),
+                 *(_fmt(r.metrics.get(m)) for m in others), _fmt_seconds(r.wall_s)]
+        lines.append("| " + " | ".join(cells) + " |")
+    return lines
+
+
+def _uses_map(records) -> dict[tuple[str, str], bool | None]:
+    out: dict[tuple[str, str], bool | None] = {}
+    for r in records:
+        _, agent, enc = group_key(r)
+        flag = (r.get("extras") or {}).get("uses_map")
+        prev = out.get((agent, enc), "unset")
+        if prev == "unset":
+            out[(agent, enc)] = flag if isinstance(flag, bool) else None
+        elif prev != flag:
+            out[(agent, enc)] = None
+    return out
+
+
+def _comparisons(records, suite: str, w: _Writer) -> list[str]:
+    flags = _uses_map(records)
+    groups = sorted(flags)
+    if all(isinstance(f, bool) for f in flags.values()):
+        pairs = [(a, b) for a in groups if flags[a] for b in groups if not flags[b]]
+        basis = "map-equipped vs map-free agents (extras.uses_map)"
+    else:
+        pairs = [(a, b) for i, a in enumerate(groups) for b in groups[i + 1:]]
+        basis = "every pair of agents (extras.uses_map not recorded for all)"
+    if not pairs:
+        w.skip(f"paired comparisons, suite {suite}", "no pair of agents to compare " + f"({basis})")
+        return []
+    if len(pairs) > _MAX_PAIRS:
+        w.skip(f"paired comparisons, suite {suite}", f"{len(pairs) - _MAX_PAIRS} of {len(pairs)} pairs left out")
+        pairs = pairs[:_MAX_PAIRS]
+    metrics = [m for m in ("success", "spl", "accuracy", "macc", "fmiou", "text_miou")
+               if any(m in (r.get("metrics") or {}) for r in records)]
+    if not metrics:
+        w.skip(f"paired comparisons, suite {suite}", "no success, SPL, accuracy or mIoU metric to compare")
+        return []
+    head = ["A", "B", "metric", "pairs", "A mean", "B mean", "A - B [95% CI]", "A only / B only", "p"]
+    lines = [f"### Paired comparisons: {basis}", "",
+             "Episodes paired by suite, episode id and seed; p: exact McNemar for rates, Wilcoxon signed-rank "
+             "otherwise.", "", "| " + " | ".join(head) + " |", "|" + "---|" * len(head)]
+    for (a, ea), (b, eb) in pairs:
+        for metric in metrics:
+            try:
+                res = paired_comparison(records, a, b, metric, suite=suite, encoder=ea, encoder_b=eb)
+            except ValueError as exc:
+                w.skip(f"comparison {a} ({ea}) vs {b} ({eb}), {metric}, suite {suite}", str(exc))
+                continue
+            disc = f"{res.a_only} / {res.b_only}" if res.binary else "-"
+            lines.append("| " + " | ".join([
+                f"{_cell(a)} ({_cell(ea)})", f"{_cell(b)} ({_cell(eb)})", metric, str(res.n_pairs),
+                f"{res.mean_a:.2f}", f"{res.mean_b:.2f}", f"{res.mean_diff:+.2f} [{res.ci_low:+.2f}, {res.ci_high:+.2f}]",
+                disc, f"{res.p_value:.3g}"]) + " |")
+    return lines + [""]
+
+
+def _scene_grid(ref: str, cache: dict):
+    if ref not in cache:
+        from sim_envs.scenes.episodes import SCENES_ROOT
+        from sim_envs.scenes.floorplan import occupancy_grid
+        from sim_envs.scenes.format import load_scene
+
+        path = Path(ref) if Path(ref).is_absolute() else SCENES_ROOT / ref
+        try:
+            cache[ref] = occupancy_grid(load_scene(path))
+        except (OSError, ValueError) as exc:
+            cache[ref] = exc
+    return cache[ref]
+
+
+def _path_figures(records, suite: str, w: _Writer) -> list[str]:
+    lines, cache = [], {}
+    by_group: dict[tuple, list[dict]] = {}
+    for r in records:
+        if (r.get("extras") or {}).get("path_xy"):
+            by_group.setdefault(group_key(r), []).append(r)
+    for key in sorted(by_group):
+        chosen = sorted(by_group[key], key=lambda r: (r["episode_id"], r["seed"]))[:_PATH_EPISODES]
+        panels = []
+        for r in chosen:
+            ex = r["extras"]
+            success = (r.get("metrics") or {}).get("success")
+            panel = {"path_xy": ex["path_xy"], "start_xy": ex.get("start_xy"), "goal_xy": ex.get("goal_xy"),
+                     "label": f"{r['episode_id']} seed {r['seed']}: "
+                              f"{'success' if success else r['status'] if r['status'] != 'ok' else 'miss'}"}
+            scene = ex.get("scene")
+            grid = _scene_grid(str(scene), cache) if scene else None
+            if isinstance(grid, Exception):
+                w.skip(f"floor plan of {scene} ({r['episode_id']})", str(grid))
+            elif grid is not None:
+                panel.update(blocked_hw=grid.blocked_hw, origin=grid.origin, cell=grid.cell)
+            else:
+                w.skip(f"floor plan for {r['episode_id']} ({key[1]})", "record names no extras.scene")
+            panels.append(panel)
+        try:
+            png = report_plots.topdown_paths(panels, title=f"{key[1]} ({key[2]}), suite {suite}")
+        except (ValueError, TypeError) as exc:
+            w.skip(f"top-down paths of {key[1]} ({key[2]})", str(exc))
+            continue
+        name = w.figure(f"paths_{suite}_{key[1]}_{key[2]}", png)
+        lines += [f"![paths of {_alt(key[1])} ({_alt(key[2])})]({name})", ""]
+    return lines
+
+
+def _heatmap_figures(items, w: _Writer) -> list[str]:
+    lines, drawn = [], 0
+    for r, base in items:
+        ref = (r.get("extras") or {}).get("heatmap_npz")
+        if not ref:
+            continue
+        if drawn >= _MAX_HEATMAPS:
+            w.skip(f"heatmap of {r['episode_id']} ({r['agent']})", f"only the first {_MAX_HEATMAPS} are drawn")
+            continue
+        path = Path(ref)
+        if not path.is_absolute() and base is not None:
+            path = base / path
+        try:
+            with np.load(path) as npz:
+                points, values = npz["points"], npz["values"]
+            png = report_plots.heatmap_topdown(points, values, title=f"{r['episode_id']}: "
+                                               f"{(r.get('extras') or {}).get('query', r['agent'])}")
+        except (OSError, KeyError, ValueError) as exc:
+            w.skip(f"heatmap {ref} ({r['episode_id']})", str(exc))
+            continue
+        name = w.figure(f"heatmap_{r['suite']}_{r['episode_id']}_{r['seed']}", png)
+        lines += [f"![query heatmap, {_alt(r['episode_id'])}]({name})", ""]
+        drawn += 1
+    return (["## Query heatmaps", ""] + lines) if lines else []
+
+
+def write_report(run_dirs_or_records, out_dir: str | os.PathLike, *, title: str = "ConceptFusion harness report",
+                 base_dir: str | os.PathLike | None = None) -> Path:
+    """Write ``out_dir/report.md`` and its PNG figures; returns the report's path.
+
+    ``run_dirs_or_records``: a run folder or results file, a sequence of them, or a sequence of
+    records (dicts). ``base_dir`` resolves relative ``extras.heatmap_npz`` paths of records
+    passed directly. A retried episode counts once, with its newest record. Raises
+    ``ValueError`` when there is nothing to report.
+    """
+    items = list({record_key(r): (r, b) for r, b in _collect(run_dirs_or_records, base_dir)}.values())
+    records = [r for r, _ in items]
+    if not records:
+        raise ValueError("write_report: the runs hold no records yet")
+    out = Path(out_dir)
+    out.mkdir(parents=True, exist_ok=True)
+    w = _Writer(out)
+    rows = summarize(records)
+    lines = [f"# {title}", ""] + _summary_section(records)
+    for suite in sorted({r.suite for r in rows}):
+        suite_rows = [r for r in rows if r.suite == suite]
+        suite_recs = [r for r in records if r["suite"] == suite]
+        lines += [f"## Suite `{suite}`", ""] + _suite_table(suite_rows) + [""]
+        with_success = [r for r in suite_rows if "success" in r.metrics]
+        if with_success:
+            labels = [f"{r.agent}\n({r.encoder})" for r in with_success]
+            stats = [r.metrics["success"] for r in with_success]
+            png = report_plots.success_bars(labels, [s.mean for s in stats], [s.low for s in stats],
+                                            [s.high for s in stats], title=f"success by agent, suite {suite} (95% CI)")
+            lines += [f"![success by agent, {_alt(suite)}]({w.figure(f'success_{suite}', png)})", ""]
+        else:
+            w.skip(f"success chart, suite {suite}", "no record has a success metric")
+        lines += _comparisons(suite_recs, suite, w)
+        cats = per_category(suite_recs)
+        if cats:
+            groups = {f"{a} ({e})": v for (_, a, e), v in cats.items()}
+            png = report_plots.category_bars(groups, title=f"success per goal category, suite {suite}")
+            lines += ["### Success per goal category", "", f"![success per category, {_alt(suite)}]"
+                      f"({w.figure(f'category_{suite}', png)})", ""]
+        else:
+            w.skip(f"per-category chart, suite {suite}", "no record has a category and a success value")
+        path_lines = _path_figures(suite_recs, suite, w)
+        if path_lines:
+            lines += ["### Episodes from above", ""] + path_lines
+    lines += _heatmap_figures(items, w)
+    lines += ["## Skipped", ""] + (w.skipped or ["- nothing"]) + [""]
+    return atomic_write_text(out / REPORT_FILE, "\n".join(lines))

@@ -1,0 +1,175 @@
+"""Where episodes run: in this process, in a local pool of worker processes, or on a Ray cluster.
+
+Every backend takes :class:`~harness.runner.tasks.EpisodeJob` s and yields result records as episodes
+finish (in completion order; records carry their episode ids). Results do not depend on the
+backend: an episode is a pure function of its job (scene, episode, seed, agent settings).
+
+* ``serial``: one episode after another in this process (debugging, tests);
+* ``process`` (default): ``workers`` processes (default: the CPU count), started with the
+  ``spawn`` method so no simulator or GL state is inherited. An episode that runs past its job's
+  ``timeout_s`` has its worker killed and is recorded as ``timeout``; a worker that dies (a crash
+  in native code) is recorded as ``failed`` with its exit code. Both are replaced and the run
+  goes on;
+* ``ray``: ``ray.remote`` tasks on a cluster (``address="auto"`` or ``"ray://host:10001"``) or a
+  local Ray instance (``address=None``); timeouts cancel the task. Needs the ``ray`` extra.
+"""
+
+from __future__ import annotations
+
+import multiprocessing as mp
+import os
+import queue
+import time
+from typing import Iterable, Iterator
+
+from harness.runner.tasks import EpisodeJob, run_episode
+
+__all__ = ["BACKENDS", "run_jobs", "RayUnavailableError", "failure_record"]
+
+BACKENDS = ("process", "serial", "ray")
+
+
+class RayUnavailableError(RuntimeError):
+    """Ray is not installed or its cluster cannot be reached."""
+
+
+def failure_record(job: EpisodeJob, status: str, error: str, wall_s: float) -> dict:
+    """The record of an episode whose worker timed out or died."""
+    from harness.runner.results import make_record
+
+    return make_record(
+        run_id=job.run_id, suite=job.suite, task=job.task, agent=job.agent, agent_kwargs=dict(job.agent_kwargs),
+        encoder=job.encoder, episode_id=job.episode.episode_id, seed=int(job.seed), status=status, error=error,
+        metrics={"success": False}, timings={"wall_s": wall_s}, category=None, extras={},
+    )
+
+
+def _serial(jobs: list[EpisodeJob]) -> Iterator[dict]:
+    for job in jobs:
+        yield run_episode(job)
+
+
+def _worker_main(inbox, outbox) -> None:
+    """Worker loop: run jobs until told to stop (``None``)."""
+    import signal
+
+    signal.signal(signal.SIGINT, signal.SIG_IGN)  # the parent handles Ctrl-C
+    while True:
+        item = inbox.get()
+        if item is None:
+            break
+        index, job = item
+        outbox.put((index, run_episode(job)))
+
+
+class _Worker:
+    def __init__(self, ctx, outbox) -> None:
+        self.inbox = ctx.Queue()
+        self.proc = ctx.Process(target=_worker_main, args=(self.inbox, outbox), daemon=True)
+        self.proc.start()
+        self.job: tuple[int, EpisodeJob] | None = None
+        self.started = 0.0
+
+    def assign(self, index: int, job: EpisodeJob) -> None:
+        self.job, self.started = (index, job), time.monotonic()
+        self.inbox.put((index, job))
+
+    def kill(self) -> None:
+        if self.proc.is_alive():
+            self.proc.kill()
+        self.proc.join(timeout=5)
+
+
+def _process_pool(jobs: list[EpisodeJob], workers: int) -> Iterator[dict]:
+    ctx = mp.get_context("spawn")
+    outbox = ctx.Queue()
+    pending = list(enumerate(jobs))[::-1]
+    pool = [_Worker(ctx, outbox) for _ in range(max(1, min(workers, len(jobs))))]
+    done = 0
+    try:
+        while done < len(jobs):
+            for w in pool:
+                if w.job is None and pending:
+                    w.assign(*pending.pop())
+            try:
+                index, record = outbox.get(timeout=0.5)
+            except queue.Empty:
+                index, record = None, None
+            if record is not None:
+                for w in pool:
+                    if w.job is not None and w.job[0] == index:
+                        w.job = None
+                done += 1
+                yield record
+            now = time.monotonic()
+            for k, w in enumerate(pool):
+                if w.job is None:
+                    continue
+                index, job = w.job
+                elapsed = now - w.started
+                if elapsed > job.timeout_s:
+                    w.kill()
+                    pool[k] = _Worker(ctx, outbox)
+                    done += 1
+                    yield failure_record(job, "timeout", f"episode exceeded {job.timeout_s:.0f} s; its worker was stopped", elapsed)
+                elif not w.proc.is_alive():
+                    code = w.proc.exitcode
+                    pool[k] = _Worker(ctx, outbox)
+                    done += 1
+                    yield failure_record(job, "failed", f"worker process died (exit code {code}) during the episode", elapsed)
+    finally:
+        for w in pool:
+            if w.proc.is_alive():
+                w.inbox.put(None)
+        for w in pool:
+            w.proc.join(timeout=2)
+            w.kill()
+
+
+def _ray(jobs: list[EpisodeJob], workers: int, address: str | None) -> Iterator[dict]:
+    try:
+        import ray
+    except ImportError as exc:
+        raise RayUnavailableError('the ray backend needs Ray: pip install -e ".[ray]"') from exc
+    if not ray.is_initialized():
+        try:
+            if address:
+                ray.init(address=address, ignore_reinit_error=True, log_to_driver=False)
+            else:
+                ray.init(num_cpus=max(1, workers), ignore_reinit_error=True, log_to_driver=False, include_dashboard=False)
+        except Exception as exc:  # ConnectionError, RuntimeError ... depending on the Ray version
+            raise RayUnavailableError(f"cannot reach the Ray cluster at {address or 'a new local instance'}: {exc}") from exc
+    remote = ray.remote(num_cpus=1, max_retries=0)(run_episode)
+    refs = {remote.remote(job): (job, time.monotonic()) for job in jobs}
+    while refs:
+        ready, _ = ray.wait(list(refs), num_returns=1, timeout=0.5)
+        for ref in ready:
+            job, t0 = refs.pop(ref)
+            try:
+                yield ray.get(ref)
+            except Exception as exc:  # the task's process died
+                yield failure_record(job, "failed", f"Ray task failed: {type(exc).__name__}: {exc}", time.monotonic() - t0)
+        now = time.monotonic()
+        for ref, (job, t0) in list(refs.items()):
+            if now - t0 > job.timeout_s:
+                ray.cancel(ref, force=True)
+                refs.pop(ref)
+                yield failure_record(job, "timeout", f"episode exceeded {job.timeout_s:.0f} s; its Ray task was cancelled", now - t0)
+
+
+def run_jobs(jobs: Iterable[EpisodeJob], *, backend: str = "process", workers: int | None = None, address: str | None = None) -> Iterator[dict]:
+    """Run episodes on a backend; yields one record per job as it finishes."""
+    jobs = list(jobs)
+    if backend not in BACKENDS:
+        import difflib
+
+        near = difflib.get_close_matches(str(backend), BACKENDS, n=1)
+        raise ValueError(f"backend: expected one of {BACKENDS}, got {backend!r}" + (f"; did you mean {near[0]!r}?" if near else ""))
+    if not jobs:
+        return iter(())
+    workers = int(workers or os.cpu_count() or 1)
+    if backend == "serial":
+        return _serial(jobs)
+    if backend == "ray":
+        return _ray(jobs, workers, address)
+    return _process_pool(jobs, workers)

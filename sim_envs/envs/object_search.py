@@ -1,0 +1,297 @@
+"""``cf/ObjectSearch-v0``: drive a mobile base to an object described in words (MuJoCo household).
+
+The base is a kinematic unicycle, a disc of ``robot_radius`` that collides with the floor plan
+(walls, doors as gaps, furniture footprints: :func:`sim_envs.scenes.floorplan.occupancy_grid`), with an
+RGB-D camera at ``camera_height`` looking ``camera_pitch_deg`` down. Success and SPL follow the
+object-navigation conventions (Anderson et al. 2018; VLMaps' 1 m radius).
+"""
+
+from __future__ import annotations
+
+import math
+import string
+from typing import Any
+
+import gymnasium as gym
+import numpy as np
+from gymnasium import spaces
+from scipy import ndimage
+from scipy.sparse import coo_matrix
+from scipy.sparse.csgraph import dijkstra
+
+from sim_envs.scenes.episodes import Episode, resolve_scene
+from sim_envs.scenes.floorplan import occupancy_grid
+from sim_envs.mujoco.camera import MujocoRGBDCamera
+from sim_envs.mujoco.scene import build_mujoco
+from sim_envs.scenes.graph import object_aabbs, scene_graph
+
+__all__ = ["ObjectSearchEnv", "geodesic_field", "geodesic_to_goal", "box_distance_xy"]
+
+_ACTION_LOW = np.array([-0.3, -1.5, 0.0], np.float32)
+_ACTION_HIGH = np.array([0.6, 1.5, 1.0], np.float32)
+
+
+def box_distance_xy(xy, lo_xy, hi_xy) -> float:
+    """Horizontal distance (m) from a point to an axis-aligned footprint (0 inside)."""
+    d = np.maximum(np.maximum(np.asarray(lo_xy) - xy, 0.0), np.asarray(xy) - np.asarray(hi_xy))
+    return float(np.linalg.norm(d))
+
+
+def geodesic_field(free_hw: np.ndarray, goal_hw: np.ndarray, cell: float) -> np.ndarray:
+    """Shortest 8-connected path length (m) over free cells from every cell to the nearest goal
+    cell (``inf`` where no goal cell is reachable, and on blocked cells).
+
+    Shape:
+        free_hw, goal_hw: (H, W) bool; returns (H, W) float64.
+    """
+    h, w = free_hw.shape
+    idx = np.full((h, w), -1, np.int64)
+    cells = np.argwhere(free_hw)
+    idx[cells[:, 0], cells[:, 1]] = np.arange(len(cells))
+    out = np.full((h, w), np.inf)
+    sources = idx[goal_hw & free_hw]
+    if len(sources) == 0:
+        return out
+    rows, cols, weights = [], [], []
+    for dr, dc in ((0, 1), (1, 0), (1, 1), (1, -1)):
+        c0, c1 = max(0, -dc), w - max(0, dc)
+        a = idx[0 : h - dr, c0:c1]
+        b = idx[dr:h, c0 + dc : c1 + dc]
+        ok = (a >= 0) & (b >= 0)
+        rows.append(a[ok]), cols.append(b[ok]), weights.append(np.full(int(ok.sum()), cell * math.hypot(dr, dc)))
+    n = len(cells)
+    graph = coo_matrix((np.concatenate(weights), (np.concatenate(rows), np.concatenate(cols))), shape=(n, n)).tocsr()
+    out[cells[:, 0], cells[:, 1]] = dijkstra(graph, directed=False, indices=sources, min_only=True)
+    return out
+
+
+def geodesic_to_goal(free_hw: np.ndarray, origin, cell: float, start_xy, goal_mask_hw: np.ndarray) -> float:
+    """Shortest 8-connected path length (m) over free cells from ``start_xy`` to any goal cell.
+
+    ``inf`` when no goal cell is reachable.
+
+    Shape:
+        free_hw, goal_mask_hw: (H, W) bool; origin, start_xy: (2,).
+    """
+    h, w = free_hw.shape
+    r, c = (np.floor((np.asarray(start_xy) - origin) / cell).astype(int))[::-1]
+    if not (0 <= r < h and 0 <= c < w) or not free_hw[r, c]:
+        return math.inf
+    return float(geodesic_field(free_hw, goal_mask_hw, cell)[r, c])
+
+
+class ObjectSearchEnv(gym.Env):
+    """Find an object in an apartment from a text description, and stop next to it.
+
+    **Task**: the observation's ``goal`` describes one object ("the red mug"). The agent drives
+    the base with velocity commands and ends the episode with ``stop``.
+
+    **Success**: ``stop`` with the base centre within ``success_distance`` (default 1.0 m,
+    horizontally) of the goal object's bounding box. Also reported: SPL = success * l / max(l, p)
+    with l the shortest collision-free path from the start to the success region (8-connected
+    grid over the floor plan inflated by the robot radius) and p the distance the base travelled;
+    the final distance to the goal; steps; collisions. Reaching ``max_steps`` truncates the
+    episode as a failure.
+
+    **Actions** ``Box(3)``: ``[linear m/s in [-0.3, 0.6], angular rad/s in [-1.5, 1.5], stop]``;
+    ``stop > 0.5`` ends the episode. Each step applies the command for ``control_dt`` seconds
+    (10 sub-steps); out-of-range values are clipped, NaN/inf raise ``ValueError``. A sub-step that
+    would bring the disc into collision is not taken (the base stops there) and counts one
+    collision.
+
+    **Observations** (Dict): ``rgb`` (H, W, 3) uint8, ``depth`` (H, W) float32 metres (inf: no
+    hit), ``K`` (3, 3), ``cam_to_world`` (4, 4) OpenCV, ``base_pose`` (3,) x, y, yaw odometry,
+    ``goal`` text. Ground truth (segmentation, object names, the goal id, the distance to the
+    goal; at reset also the scene graph, the free cells ``free_grid`` (H, W) bool with
+    ``grid_origin`` and ``grid_cell``, the goal's box ``goal_aabb`` (2, 3) and
+    ``success_distance``) is in ``info`` only.
+
+    **Episodes**: pass ``options={"episode": Episode}`` to reset (the harness does, from
+    ``scenes/household/episodes-v1.jsonl``), or give ``episodes`` to the constructor to pick one
+    by the reset seed. Scene paths are relative to ``scenes_root`` (default: the shipped
+    ``scenes/`` folder).
+    """
+
+    metadata = {"render_modes": ["rgb_array"], "render_fps": 4}
+
+    def __init__(
+        self,
+        *,
+        episodes: list[Episode] | tuple[Episode, ...] | None = None,
+        width: int = 160,
+        height: int = 120,
+        fovy_deg: float = 70.0,
+        camera_height: float = 1.2,
+        camera_pitch_deg: float = 20.0,
+        robot_radius: float = 0.25,
+        success_distance: float = 1.0,
+        control_dt: float = 0.5,
+        max_steps: int | None = None,
+        scenes_root: str | None = None,
+        render_mode: str | None = None,
+    ) -> None:
+        if render_mode not in (None, "rgb_array"):
+            raise ValueError(f"render_mode: expected None or 'rgb_array', got {render_mode!r}")
+        if success_distance <= 0 or robot_radius <= 0 or control_dt <= 0:
+            raise ValueError("success_distance, robot_radius, control_dt: expected positive values")
+        self._episodes = tuple(episodes) if episodes else None
+        self.width, self.height, self.fovy_deg = int(width), int(height), float(fovy_deg)
+        self.camera_height, self.pitch = float(camera_height), math.radians(camera_pitch_deg)
+        self.robot_radius, self.success_distance = float(robot_radius), float(success_distance)
+        self.control_dt, self._max_steps_override = float(control_dt), max_steps
+        self.render_mode, self.scenes_root = render_mode, scenes_root
+        self.action_space = spaces.Box(_ACTION_LOW, _ACTION_HIGH, dtype=np.float32)
+        self.observation_space = spaces.Dict(
+            {
+                "rgb": spaces.Box(0, 255, (height, width, 3), np.uint8),
+                "depth": spaces.Box(0.0, np.inf, (height, width), np.float32),
+                "K": spaces.Box(-np.inf, np.inf, (3, 3), np.float64),
+                "cam_to_world": spaces.Box(-np.inf, np.inf, (4, 4), np.float64),
+                "base_pose": spaces.Box(-np.inf, np.inf, (3,), np.float64),
+                "goal": spaces.Text(max_length=200, min_length=1, charset=string.ascii_letters + string.digits + " '-,."),
+            }
+        )
+        self._sim = None
+        self._camera: MujocoRGBDCamera | None = None
+        self._scene_key = None
+        self._last = None
+
+    # -- episode set-up --------------------------------------------------------------------
+
+    def _load(self, episode: Episode) -> None:
+        scene = resolve_scene(episode.scene, episode.scene_seed, scenes_root=self.scenes_root)
+        if not scene.rooms:
+            raise ValueError(f"episode {episode.episode_id}: scene {scene.id} is not a household scene (no rooms)")
+        if self._scene_key != scene.id:
+            if self._camera is not None:
+                self._camera.close()
+            self._sim = build_mujoco(scene)
+            self._camera = MujocoRGBDCamera(
+                self._sim.model, self._sim.data, self.width, self.height,
+                fovy_deg=self.fovy_deg, geom_object=self._sim.geom_object,
+            )
+            occ = occupancy_grid(scene, cell=0.05)
+            clearance = ndimage.distance_transform_edt(~occ.blocked_hw) * occ.cell
+            self._occ, self._free = occ, clearance > self.robot_radius
+            self._scene_key = scene.id
+        self.scene = scene
+
+    def _is_free(self, xy) -> bool:
+        occ = self._occ
+        c, r = np.floor((np.asarray(xy) - occ.origin) / occ.cell).astype(int)
+        h, w = self._free.shape
+        return bool(0 <= r < h and 0 <= c < w and self._free[r, c])
+
+    def reset(self, *, seed: int | None = None, options: dict[str, Any] | None = None):
+        super().reset(seed=seed)
+        episode = (options or {}).get("episode")
+        if episode is None:
+            if not self._episodes:
+                from sim_envs.scenes.search_episodes import default_search_episodes
+
+                self._episodes = default_search_episodes().episodes
+            episode = self._episodes[int(self.np_random.integers(len(self._episodes)))]
+        if not isinstance(episode, Episode) or not episode.goals or episode.start_pose is None:
+            raise ValueError(f"ObjectSearch: expected an object-search Episode with a goal and a start pose, got {episode!r}")
+        self._load(episode)
+        self.episode = episode
+        self._goal_index = [o.id for o in self.scene.objects].index(episode.goals[0].object_id)
+        x, y, yaw = episode.start_pose
+        if not self._is_free((x, y)):
+            raise ValueError(f"episode {episode.episode_id}: start pose ({x:.2f}, {y:.2f}) is inside an obstacle")
+        self._pose = np.array([x, y, yaw], np.float64)
+        self._steps, self._path_length, self._collisions = 0, 0.0, 0
+        box = object_aabbs(self._sim)[self._goal_index]
+        self._goal_box = box
+        cx, cy = self._occ.centres()
+        d = np.sqrt(np.maximum(np.maximum(box[0, 0] - cx, 0), cx - box[1, 0]) ** 2 + np.maximum(np.maximum(box[0, 1] - cy, 0), cy - box[1, 1]) ** 2)
+        self._shortest = geodesic_to_goal(self._free, self._occ.origin, self._occ.cell, (x, y), d <= self.success_distance)
+        self._max_steps = int(self._max_steps_override or episode.max_steps)
+        obs, info = self._observe()
+        info["scene_graph"] = scene_graph(self._sim)
+        # Ground truth for scoring and privileged agents, at reset only: the floor plan's free
+        # cells for the base (inflated by the robot radius), the grid's frame and the goal's box.
+        info["free_grid"] = self._free.copy()
+        info["grid_origin"] = np.asarray(self._occ.origin, np.float64).copy()
+        info["grid_cell"] = float(self._occ.cell)
+        info["goal_aabb"] = np.asarray(box, np.float64).copy()
+        info["success_distance"] = self.success_distance
+        return obs, info
+
+    # -- dynamics --------------------------------------------------------------------------
+
+    def step(self, action):
+        if self._sim is None:
+            raise RuntimeError("ObjectSearch: call reset() before step()")
+        a = np.asarray(action, np.float64).reshape(-1)
+        if a.shape != (3,):
+            raise ValueError(f"ObjectSearch: expected an action of shape (3,) [linear, angular, stop], got shape {np.shape(action)}")
+        if not np.all(np.isfinite(a)):
+            raise ValueError(f"ObjectSearch: expected finite action values, got {a.tolist()}")
+        a = np.clip(a, _ACTION_LOW, _ACTION_HIGH)
+        self._steps += 1
+        stop = a[2] > 0.5
+        if not stop:
+            sub = 10
+            dt = self.control_dt / sub
+            for _ in range(sub):
+                x, y, yaw = self._pose
+                yaw_new = math.remainder(yaw + a[1] * dt, 2 * math.pi)
+                nxt = (x + a[0] * dt * math.cos(yaw), y + a[0] * dt * math.sin(yaw))
+                if abs(a[0]) > 0 and not self._is_free(nxt):
+                    self._collisions += 1
+                    self._pose[2] = yaw_new
+                    break
+                self._path_length += math.dist((x, y), nxt)
+                self._pose = np.array([nxt[0], nxt[1], yaw_new])
+        obs, info = self._observe()
+        dist = info["distance_to_goal"]
+        success = bool(stop and dist <= self.success_distance)
+        info["success"] = success
+        info["spl"] = float(success * self._shortest / max(self._shortest, self._path_length, 1e-9)) if math.isfinite(self._shortest) else 0.0
+        truncated = (not stop) and self._steps >= self._max_steps
+        return obs, float(success), bool(stop), bool(truncated), info
+
+    # -- sensing ---------------------------------------------------------------------------
+
+    def camera_eye_target(self, pose=None) -> tuple[np.ndarray, np.ndarray]:
+        """Camera position and look-at point for a base pose ``(x, y, yaw)``."""
+        x, y, yaw = self._pose if pose is None else pose
+        eye = np.array([x, y, self.camera_height])
+        fwd = np.array([math.cos(yaw) * math.cos(self.pitch), math.sin(yaw) * math.cos(self.pitch), -math.sin(self.pitch)])
+        return eye, eye + fwd
+
+    def _observe(self):
+        self._camera.set_pose(*self.camera_eye_target())
+        f = self._camera.render()
+        self._last = f
+        obs = {
+            "rgb": f.rgb, "depth": f.depth, "K": f.K, "cam_to_world": f.cam_to_world,
+            "base_pose": self._pose.copy(), "goal": self.episode.instruction,
+        }
+        info = {
+            "episode_id": self.episode.episode_id,
+            "scene_id": self.scene.id,
+            "segmentation": f.segmentation,
+            "object_ids": [o.id for o in self.scene.objects],
+            "object_names": [o.name for o in self.scene.objects],
+            "goal_object_id": self.episode.goals[0].object_id,
+            "distance_to_goal": box_distance_xy(self._pose[:2], self._goal_box[0, :2], self._goal_box[1, :2]),
+            "shortest_path_length": self._shortest,
+            "path_length": self._path_length,
+            "steps": self._steps,
+            "collisions": self._collisions,
+            "success": False,
+            "spl": 0.0,
+        }
+        return obs, info
+
+    def render(self):
+        if self.render_mode == "rgb_array" and self._last is not None:
+            return self._last.rgb
+        return None
+
+    def close(self) -> None:
+        if self._camera is not None:
+            self._camera.close()
+            self._camera = None

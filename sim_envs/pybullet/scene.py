@@ -1,0 +1,248 @@
+"""Building a :class:`~sim_envs.scenes.format.Scene` in a PyBullet physics client.
+
+Objects get the same shapes as in MuJoCo: procedural kinds are read from the MJCF geoms of
+:mod:`sim_envs.assets.objects` (boxes, cylinders, capsules, spheres become one compound body), mesh
+kinds load the normalised meshes of :mod:`sim_envs.assets.meshes`. Surfaces carry textures
+(gradients and checkers in the object's colour, written as small PNGs into the asset cache),
+not flat colours.
+"""
+
+from __future__ import annotations
+
+import math
+import xml.etree.ElementTree as ET
+from dataclasses import dataclass
+
+import numpy as np
+
+from conceptfusion.io_utils import atomic_write_bytes
+from sim_envs.assets.objects import COLORS, get_asset
+from sim_envs.assets.meshes import cache_dir, mesh_texture, normalized_mesh
+from sim_envs.scenes.format import Scene, SceneObject
+
+__all__ = ["PyBulletScene", "build_pybullet", "texture_png", "OBJECT_FRICTION"]
+
+OBJECT_FRICTION = 0.5
+"""Lateral friction of objects and table top (a box pushed over wood)."""
+
+_DENSITY = 400.0  # kg/m^3 of the bounding box, clipped to 0.1-0.5 kg
+
+
+@dataclass
+class PyBulletScene:
+    """A scene loaded in a PyBullet client.
+
+    ``object_body[i]`` is the body id of ``scene.objects[i]``; ``body_object`` maps body ids
+    to object indices (bodies that are no object map to -1 through :meth:`body_lut`).
+    """
+
+    scene: Scene
+    client: int
+    object_body: np.ndarray
+    body_object: dict[int, int]
+    table_body: int | None
+    line_body: int | None
+    floor_body: int
+
+    def body_lut(self, n_bodies: int | None = None) -> np.ndarray:
+        """(B,) int32 lookup from body id to object index, -1 elsewhere."""
+        import pybullet as p
+
+        n = p.getNumBodies(physicsClientId=self.client) if n_bodies is None else n_bodies
+        lut = np.full(max(n, max(self.body_object, default=-1) + 1), -1, np.int32)
+        for b, i in self.body_object.items():
+            lut[b] = i
+        return lut
+
+
+def texture_png(name: str, rgb: tuple[float, float, float], pattern: str = "gradient", size: int = 64) -> str:
+    """Path of a small texture PNG in two shades of ``rgb`` (written once into the cache).
+
+    ``pattern``: "gradient" (vertical ramp with a faint weave) or "checker" (8x8 squares).
+    """
+    if pattern not in ("gradient", "checker"):
+        raise ValueError(f"pattern: expected 'gradient' or 'checker', got {pattern!r}")
+    r, g, b = rgb
+    out = cache_dir() / "textures" / f"{name}_{pattern}_{round(r * 255)}_{round(g * 255)}_{round(b * 255)}_{size}.png"
+    if out.exists():
+        return str(out)
+    import cv2
+
+    lo = np.array(rgb) * 0.75
+    hi = np.minimum(1.0, np.array(rgb) * 1.1)
+    t = np.linspace(0.0, 1.0, size)[:, None, None]
+    if pattern == "gradient":
+        weave = 0.04 * ((np.arange(size)[None, :, None] // 4 + np.arange(size)[:, None, None] // 4) % 2)
+        img = lo + (hi - lo) * t + weave
+    else:
+        sq = (np.arange(size)[:, None] // (size // 8) + np.arange(size)[None, :] // (size // 8)) % 2
+        img = np.where(sq[..., None] == 1, hi, lo) * np.ones((size, size, 3))
+    bgr = (np.clip(img, 0, 1)[..., ::-1] * 255).round().astype(np.uint8)
+    ok, buf = cv2.imencode(".png", bgr)
+    if not ok:
+        raise RuntimeError(f"could not encode texture {name!r}")
+    atomic_write_bytes(out, buf.tobytes())
+    return str(out)
+
+
+def _floats(text: str | None, n: int, default) -> np.ndarray:
+    return np.asarray(default if text is None else [float(x) for x in text.split()][:n], np.float64)
+
+
+def _quat_z_to(d: np.ndarray) -> list[float]:
+    """xyzw quaternion turning +z onto unit vector ``d``."""
+    z = np.array([0.0, 0.0, 1.0])
+    axis = np.cross(z, d)
+    s = np.linalg.norm(axis)
+    if s < 1e-9:
+        return [0.0, 0.0, 0.0, 1.0] if d[2] > 0 else [1.0, 0.0, 0.0, 0.0]
+    angle = math.atan2(s, float(np.dot(z, d)))
+    axis = axis / s * math.sin(angle / 2)
+    return [*axis, math.cos(angle / 2)]
+
+
+def primitive_shapes(asset: str, size) -> list[dict]:
+    """The MuJoCo primitive geoms of a procedural asset as PyBullet shape arguments.
+
+    Returns one dict per geom with ``shapeType`` and the size keyword (``halfExtents``,
+    ``radius``, ``length``), plus ``pos`` (3,) and ``quat`` (xyzw) in the object frame.
+    """
+    import pybullet as p
+
+    root = ET.fromstring(f"<r>{get_asset(asset).geoms(tuple(size), 'm')}</r>")
+    shapes = []
+    for g in root:
+        kind = g.get("type", "sphere")
+        sz = _floats(g.get("size"), 3, [0.0])
+        pos = _floats(g.get("pos"), 3, [0.0, 0.0, 0.0])
+        quat = [0.0, 0.0, 0.0, 1.0]
+        if g.get("fromto") is not None:
+            ft = _floats(g.get("fromto"), 6, [0.0] * 6)
+            a, b = ft[:3], ft[3:]
+            length = float(np.linalg.norm(b - a))
+            pos, quat = (a + b) / 2, _quat_z_to((b - a) / max(length, 1e-12))
+            half = length / 2
+        else:
+            half = float(sz[1]) if len(sz) > 1 else 0.0
+        if kind == "box":
+            shapes.append({"shapeType": p.GEOM_BOX, "halfExtents": list(sz[:3]), "pos": pos, "quat": quat})
+        elif kind == "sphere":
+            shapes.append({"shapeType": p.GEOM_SPHERE, "radius": float(sz[0]), "pos": pos, "quat": quat})
+        elif kind in ("cylinder", "capsule"):
+            t = p.GEOM_CYLINDER if kind == "cylinder" else p.GEOM_CAPSULE
+            shapes.append({"shapeType": t, "radius": float(sz[0]), "length": 2 * half, "pos": pos, "quat": quat})
+        else:
+            raise ValueError(f"asset {asset!r}: geom type {kind!r} has no PyBullet counterpart")
+    return shapes
+
+
+def _compound(shapes: list[dict], client: int) -> tuple[int, int]:
+    import pybullet as p
+
+    types = [s["shapeType"] for s in shapes]
+    common = dict(
+        shapeTypes=types,
+        halfExtents=[s.get("halfExtents", [0, 0, 0]) for s in shapes],
+        radii=[s.get("radius", 0.0) for s in shapes],
+        lengths=[s.get("length", 0.0) for s in shapes],
+        physicsClientId=client,
+    )
+    col = p.createCollisionShapeArray(
+        collisionFramePositions=[[float(x) for x in s["pos"]] for s in shapes],
+        collisionFrameOrientations=[[float(q) for q in s["quat"]] for s in shapes], **common,
+    )
+    vis = p.createVisualShapeArray(
+        visualFramePositions=[[float(x) for x in s["pos"]] for s in shapes],
+        visualFrameOrientations=[[float(q) for q in s["quat"]] for s in shapes],
+        **common,
+    )
+    return col, vis
+
+
+def _object_body(o: SceneObject, client: int) -> int:
+    import pybullet as p
+
+    asset = get_asset(o.asset)
+    size = tuple(float(s) for s in o.size)
+    if asset.mesh is not None:
+        path = str(normalized_mesh(asset.mesh))
+        col = p.createCollisionShape(p.GEOM_MESH, fileName=path, meshScale=size, physicsClientId=client)
+        vis = p.createVisualShape(p.GEOM_MESH, fileName=path, meshScale=size, physicsClientId=client)
+        tex_path = mesh_texture(asset.mesh)
+    else:
+        col, vis = _compound(primitive_shapes(o.asset, size), client)
+        tex_path = None
+    if tex_path is None:
+        tex_path = texture_png(f"paint_{o.color}", COLORS[o.color], "gradient")
+    mass = float(np.clip(_DENSITY * size[0] * size[1] * size[2], 0.1, 0.5))
+    quat = p.getQuaternionFromEuler([0.0, 0.0, o.yaw])
+    x, y, z = o.position
+    body = p.createMultiBody(
+        baseMass=mass, baseCollisionShapeIndex=col, baseVisualShapeIndex=vis,
+        basePosition=[x, y, z + 0.001], baseOrientation=quat,
+        baseInertialFramePosition=[0.0, 0.0, size[2] * 0.4], physicsClientId=client,
+    )
+    tex = p.loadTexture(str(tex_path), physicsClientId=client)
+    p.changeVisualShape(body, -1, textureUniqueId=tex, rgbaColor=[1, 1, 1, 1], physicsClientId=client)
+    p.changeDynamics(
+        body, -1, lateralFriction=OBJECT_FRICTION, spinningFriction=0.001, rollingFriction=0.0001,
+        linearDamping=0.04, angularDamping=0.04, physicsClientId=client,
+    )
+    return body
+
+
+def _static_body(shapes: list[dict], texture: str, client: int, *, collide: bool = True) -> int:
+    import pybullet as p
+
+    col, vis = _compound(shapes, client)
+    body = p.createMultiBody(0.0, col if collide else -1, vis, physicsClientId=client)
+    p.changeVisualShape(body, -1, textureUniqueId=p.loadTexture(texture, physicsClientId=client), physicsClientId=client)
+    p.changeDynamics(body, -1, lateralFriction=OBJECT_FRICTION, physicsClientId=client)
+    return body
+
+
+def build_pybullet(scene: Scene, client: int) -> PyBulletScene:
+    """Load ``scene`` into the PyBullet client ``client`` (gravity -9.81 z).
+
+    Floor (checker), table top with four legs (wood), the dividing line (visual only, no
+    collision) and one dynamic body per object, placed 1 mm above its resting height.
+    """
+    import pybullet as p
+
+    p.setGravity(0.0, 0.0, -9.81, physicsClientId=client)
+    box = p.GEOM_BOX
+    floor = _static_body(
+        [{"shapeType": box, "halfExtents": [5, 5, 0.05], "pos": [0, 0, -0.05], "quat": [0, 0, 0, 1]}],
+        texture_png("floor", (0.55, 0.55, 0.58), "checker", 128), client,
+    )
+    table_body = line_body = None
+    if scene.table is not None:
+        t = scene.table
+        cx, cy, cz = t.center
+        sx, sy, sz = (s / 2 for s in t.size)
+        leg_h = (cz - sz) / 2
+        shapes = [{"shapeType": box, "halfExtents": [sx, sy, sz], "pos": [0, 0, 0], "quat": [0, 0, 0, 1]}]
+        for lx, ly in [(1, 1), (1, -1), (-1, 1), (-1, -1)]:
+            shapes.append({
+                "shapeType": box, "halfExtents": [0.025, 0.025, leg_h],
+                "pos": [lx * (sx - 0.04), ly * (sy - 0.04), leg_h - cz], "quat": [0, 0, 0, 1],
+            })
+        table_body = _static_body(shapes, texture_png("wood", (0.55, 0.36, 0.20)), client)
+        p.resetBasePositionAndOrientation(table_body, [cx, cy, cz], [0, 0, 0, 1], physicsClientId=client)
+        if scene.line is not None:
+            (x0, y0), (x1, y1) = scene.line
+            length = math.hypot(x1 - x0, y1 - y0)
+            yaw = math.atan2(y1 - y0, x1 - x0)
+            line_body = _static_body(
+                [{"shapeType": box, "halfExtents": [length / 2, 0.008, 0.0005], "pos": [0, 0, 0], "quat": [0, 0, 0, 1]}],
+                texture_png("line", (0.95, 0.85, 0.10)), client, collide=False,
+            )
+            p.resetBasePositionAndOrientation(
+                line_body, [(x0 + x1) / 2, (y0 + y1) / 2, t.top_z + 0.0005],
+                p.getQuaternionFromEuler([0, 0, yaw]), physicsClientId=client,
+            )
+    bodies = np.array([_object_body(o, client) for o in scene.objects], np.int64)
+    return PyBulletScene(
+        scene=scene, client=client, object_body=bodies, body_object={int(b): i for i, b in enumerate(bodies)},
+        table_body=table_body, line_body=line_body, floor_body=floor,
+    )

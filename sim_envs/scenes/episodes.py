@@ -1,0 +1,287 @@
+"""The episode dataset format (JSON Lines), its validating loader, its writer and the tabletop
+episode generator.
+
+A file starts with a header line, then holds one episode per line::
+
+    {"format": "cf-episodes", "version": 1, "task": "tabletop_rearrange", "generator_seed": 0}
+    {"episode_id": "tabletop-v1-0000", "scene": "tabletop/tabletop-0042.json", "scene_seed": 42,
+     "instruction": "push the red mug to the right of the line",
+     "goals": [{"object_id": "obj3", "side": "right"}], "start_pose": null, "max_steps": 6}
+
+``scene`` is a path relative to the ``scenes/`` folder (ending in ``.json``) or a scene id
+(looked up as ``<id>.json`` under ``scenes/``; a ``tabletop-NNNN`` id with no file is generated
+from ``scene_seed``). ``goals`` are ``{object_id, side}`` for rearrangement (side ``left`` or
+``right``) and ``{object_id}`` for object search; ``start_pose`` is the agent's ``[x, y, yaw]``
+for search and ``null`` on a tabletop.
+"""
+
+from __future__ import annotations
+
+import json
+import os
+from dataclasses import dataclass
+from functools import lru_cache
+from pathlib import Path
+
+import numpy as np
+
+from conceptfusion.io_utils import atomic_write_text
+from sim_envs.envs.rearrange_eval import signed_line_distance
+from sim_envs.scenes.format import Scene, load_scene
+from sim_envs.scenes.gen_tabletop import generate_tabletop
+
+__all__ = [
+    "EpisodeFormatError", "Goal", "Episode", "EpisodeSet", "FORMAT", "VERSION", "TASKS", "SCENES_ROOT",
+    "MAX_LINE_DISTANCE", "load_episodes", "save_episodes", "episodes_text", "resolve_scene", "tabletop_goals", "tabletop_instruction",
+    "generate_tabletop_episodes",
+]
+
+FORMAT = "cf-episodes"
+VERSION = 1
+TASKS = ("tabletop_rearrange", "object_search")
+SIDES = ("left", "right")
+SCENES_ROOT = Path(__file__).resolve().parents[2] / "scenes"
+"""The shipped ``scenes/`` folder: the default root that scene paths are relative to."""
+
+
+class EpisodeFormatError(ValueError):
+    """An episode file or record is malformed; the message names the file and line."""
+
+
+@dataclass(frozen=True)
+class Goal:
+    """One instructed object: ``side`` is ``"left"``/``"right"`` for rearrangement, ``None`` for search."""
+
+    object_id: str
+    side: str | None = None
+
+
+@dataclass(frozen=True)
+class Episode:
+    """One episode record."""
+
+    episode_id: str
+    scene: str
+    """Scene path relative to ``scenes/`` (``.json``) or a scene id."""
+    scene_seed: int
+    instruction: str
+    goals: tuple[Goal, ...]
+    start_pose: tuple[float, float, float] | None = None
+    """Agent start ``(x, y, yaw)`` for search tasks; ``None`` on a tabletop."""
+    max_steps: int = 6
+
+    def to_json(self) -> dict:
+        goals = [{"object_id": g.object_id, **({"side": g.side} if g.side is not None else {})} for g in self.goals]
+        return {
+            "episode_id": self.episode_id, "scene": self.scene, "scene_seed": self.scene_seed,
+            "instruction": self.instruction, "goals": goals,
+            "start_pose": list(self.start_pose) if self.start_pose is not None else None, "max_steps": self.max_steps,
+        }
+
+
+@dataclass(frozen=True)
+class EpisodeSet:
+    """A whole episode file: header fields plus the episodes in file order."""
+
+    task: str
+    generator_seed: int | None
+    episodes: tuple[Episode, ...]
+
+    def header(self) -> dict:
+        return {"format": FORMAT, "version": VERSION, "task": self.task, "generator_seed": self.generator_seed}
+
+
+# ------------------------------------------------------------------------------------ loading
+def resolve_scene(ref: str, scene_seed: int = 0, *, scenes_root: str | os.PathLike | None = None) -> Scene:
+    """The scene an episode names: a ``.json`` path under ``scenes_root``, a scene id with a file
+    ``<id>.json`` somewhere under it, or a ``tabletop-NNNN`` id generated from ``scene_seed``."""
+    root = Path(scenes_root) if scenes_root is not None else SCENES_ROOT
+    return _resolve_scene_cached(str(ref), int(scene_seed), str(root.resolve()))
+
+
+@lru_cache(maxsize=256)
+def _resolve_scene_cached(ref: str, scene_seed: int, root: str) -> Scene:
+    base = Path(root)
+    if ref.endswith(".json"):
+        path = base / ref
+        if not path.is_file():
+            raise FileNotFoundError(f"scene file {path} does not exist (scene {ref!r}, relative to {base})")
+        return load_scene(path)
+    found = sorted(base.rglob(f"{ref}.json")) if base.is_dir() else []
+    if found:
+        return load_scene(found[0])
+    if ref.startswith("tabletop-"):
+        return generate_tabletop(scene_seed)
+    raise FileNotFoundError(f"scene {ref!r}: no file {ref}.json under {base}, and only tabletop-NNNN ids can be generated")
+
+
+def _field(d: dict, key: str, kind, where: str):
+    if key not in d:
+        raise EpisodeFormatError(f"{where}: missing field {key!r}")
+    v = d[key]
+    if kind is int and (isinstance(v, bool) or not isinstance(v, int)):
+        raise EpisodeFormatError(f"{where}: {key!r} expected an integer, got {v!r}")
+    if kind is str and (not isinstance(v, str) or not v):
+        raise EpisodeFormatError(f"{where}: {key!r} expected a non-empty string, got {v!r}")
+    return v
+
+
+def _parse_episode(d, task: str, where: str) -> Episode:
+    if not isinstance(d, dict):
+        raise EpisodeFormatError(f"{where}: expected a JSON object, got {type(d).__name__}")
+    goals_raw = _field(d, "goals", list, where)
+    if not isinstance(goals_raw, list) or not goals_raw:
+        raise EpisodeFormatError(f"{where}: 'goals' expected a non-empty list, got {goals_raw!r}")
+    goals = []
+    for k, g in enumerate(goals_raw):
+        if not isinstance(g, dict) or not isinstance(g.get("object_id"), str):
+            raise EpisodeFormatError(f"{where}: goals[{k}] expected {{'object_id': str, ...}}, got {g!r}")
+        side = g.get("side")
+        if task == "tabletop_rearrange" and side not in SIDES:
+            raise EpisodeFormatError(f"{where}: goals[{k}].side expected one of {SIDES}, got {side!r}")
+        goals.append(Goal(g["object_id"], side))
+    pose = d.get("start_pose")
+    if pose is not None:
+        if not isinstance(pose, list) or len(pose) != 3 or not all(isinstance(v, (int, float)) and np.isfinite(v) for v in pose):
+            raise EpisodeFormatError(f"{where}: 'start_pose' expected null or [x, y, yaw] (3 finite numbers), got {pose!r}")
+        pose = tuple(float(v) for v in pose)
+    max_steps = _field(d, "max_steps", int, where)
+    if max_steps < 1:
+        raise EpisodeFormatError(f"{where}: 'max_steps' expected >= 1, got {max_steps}")
+    return Episode(
+        episode_id=_field(d, "episode_id", str, where), scene=_field(d, "scene", str, where),
+        scene_seed=_field(d, "scene_seed", int, where), instruction=_field(d, "instruction", str, where),
+        goals=tuple(goals), start_pose=pose, max_steps=max_steps,
+    )
+
+
+def load_episodes(
+    path: str | os.PathLike, *, scenes_root: str | os.PathLike | None = None, check_scenes: bool = True
+) -> EpisodeSet:
+    """Read and validate an episode file.
+
+    Raises :class:`EpisodeFormatError` naming the file and the 1-based line number for a line
+    that is not JSON or not a valid record, a bad header, or a duplicate episode id; with
+    ``check_scenes`` every scene is resolved (:func:`resolve_scene`) and every goal object id
+    must exist in it.
+    """
+    p = Path(path)
+    lines = p.read_text(encoding="utf-8").splitlines()
+    records = []
+    for no, line in enumerate(lines, start=1):
+        if not line.strip():
+            continue
+        try:
+            records.append((no, json.loads(line)))
+        except json.JSONDecodeError as exc:
+            raise EpisodeFormatError(f"{p}:line {no}: not valid JSON ({exc.msg} at column {exc.colno})") from exc
+    if not records:
+        raise EpisodeFormatError(f"{p}: expected a header line, got an empty file")
+    no, header = records[0]
+    if not isinstance(header, dict) or header.get("format") != FORMAT:
+        got = header.get("format") if isinstance(header, dict) else header
+        raise EpisodeFormatError(f"{p}:line {no}: expected a header with format {FORMAT!r}, got {got!r}")
+    if not isinstance(header.get("version"), int) or header["version"] > VERSION:
+        raise EpisodeFormatError(f"{p}:line {no}: expected version <= {VERSION}, got {header.get('version')!r}")
+    task = header.get("task")
+    if task not in TASKS:
+        raise EpisodeFormatError(f"{p}:line {no}: expected task in {TASKS}, got {task!r}")
+    seed = header.get("generator_seed")
+    episodes, seen = [], set()
+    for no, rec in records[1:]:
+        where = f"{p}:line {no}"
+        ep = _parse_episode(rec, task, where)
+        if ep.episode_id in seen:
+            raise EpisodeFormatError(f"{where}: duplicate episode_id {ep.episode_id!r}")
+        seen.add(ep.episode_id)
+        if check_scenes:
+            try:
+                scene = resolve_scene(ep.scene, ep.scene_seed, scenes_root=scenes_root)
+            except (OSError, ValueError) as exc:
+                raise EpisodeFormatError(f"{where}: episode {ep.episode_id!r}: {exc}") from exc
+            ids = [o.id for o in scene.objects]
+            for g in ep.goals:
+                if g.object_id not in ids:
+                    raise EpisodeFormatError(
+                        f"{where}: episode {ep.episode_id!r} names object {g.object_id!r}, which scene {scene.id!r} lacks (objects: {ids})"
+                    )
+        episodes.append(ep)
+    return EpisodeSet(task, seed if isinstance(seed, int) else None, tuple(episodes))
+
+
+def episodes_text(episodes: EpisodeSet) -> str:
+    """The JSON Lines text of an episode set (header first, one episode per line)."""
+    lines = [json.dumps(episodes.header())] + [json.dumps(e.to_json()) for e in episodes.episodes]
+    return "\n".join(lines) + "\n"
+
+
+def save_episodes(episodes: EpisodeSet, path: str | os.PathLike) -> Path:
+    """Write an episode file atomically."""
+    if episodes.task not in TASKS:
+        raise ValueError(f"task: expected one of {TASKS}, got {episodes.task!r}")
+    return atomic_write_text(path, episodes_text(episodes))
+
+
+# ------------------------------------------------------------------------------------ tabletop
+def _side_of(scene: Scene, index: int) -> str:
+    """Which side of the line (``left``/``right``) object ``index`` stands on."""
+    d = signed_line_distance(scene, np.asarray(scene.objects[index].position[:2])[None, :])[0]
+    return "right" if d > 0 else "left"
+
+
+MAX_LINE_DISTANCE = 0.25
+"""Targets are drawn among objects whose centre lies within this distance (m) of the line, as in
+the paper's set-up (short pushes across a line), so that a few pushes can solve an episode."""
+
+
+def tabletop_goals(
+    scene: Scene, rng: np.random.Generator, *, num_targets: tuple[int, int] = (1, 2), max_line_distance: float = MAX_LINE_DISTANCE
+) -> tuple[Goal, ...]:
+    """1-2 distinct target objects within ``max_line_distance`` of the line, each instructed to the
+    side of the line it is not on. Empty when no object is that close."""
+    centres = np.array([o.position[:2] for o in scene.objects], float).reshape(-1, 2)
+    eligible = np.flatnonzero(np.abs(signed_line_distance(scene, centres)) <= max_line_distance)
+    n = min(len(eligible), int(rng.integers(num_targets[0], num_targets[1] + 1)))
+    if n == 0:
+        return ()
+    picks = rng.choice(eligible, size=n, replace=False)
+    return tuple(Goal(scene.objects[i].id, "left" if _side_of(scene, int(i)) == "right" else "right") for i in sorted(picks))
+
+
+def tabletop_instruction(scene: Scene, goals: tuple[Goal, ...]) -> str:
+    """``"push the red mug to the right of the line"`` (targets joined with ``and``)."""
+    parts = [f"the {scene.object(g.object_id).name} to the {g.side} of the line" for g in goals]
+    return "push " + " and ".join(parts)
+
+
+def generate_tabletop_episodes(
+    generator_seed: int, count: int, *, max_steps: int = 6, scene_dir: str = "tabletop"
+) -> tuple[EpisodeSet, list[Scene]]:
+    """``count`` tabletop rearrangement episodes, one generated scene each.
+
+    Scene seeds are distinct draws from ``np.random.default_rng(generator_seed)`` (a scene with no
+    object near the line is skipped); each episode's
+    scene is referred to as ``<scene_dir>/<scene id>.json``. Returns the episode set and the
+    scenes (for writing the scene files).
+    """
+    if count < 1:
+        raise ValueError(f"count: expected >= 1, got {count}")
+    rng = np.random.default_rng(generator_seed)
+    seeds = rng.permutation(10_000)
+    episodes, scenes = [], []
+    for s in seeds:
+        if len(episodes) == count:
+            break
+        scene = generate_tabletop(int(s))
+        goals = tabletop_goals(scene, rng)
+        if not goals:
+            continue
+        k = len(episodes)
+        episodes.append(
+            Episode(
+                episode_id=f"tabletop-v1-{k:04d}", scene=f"{scene_dir}/{scene.id}.json", scene_seed=int(s),
+                instruction=tabletop_instruction(scene, goals), goals=goals, start_pose=None, max_steps=max_steps,
+            )
+        )
+        scenes.append(scene)
+    return EpisodeSet("tabletop_rearrange", int(generator_seed), tuple(episodes)), scenes

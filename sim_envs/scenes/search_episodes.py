@@ -1,0 +1,113 @@
+"""Object-search episodes over household scenes: generation and the shipped default set.
+
+An episode names a household scene, one goal object, the goal description the agent receives
+("the red mug") and a start pose for the base in a different room from the goal, from which the
+goal is reachable (the success region has a finite geodesic distance).
+
+    python -m sim_envs.scenes.search_episodes    # regenerates scenes/household/episodes-v1.jsonl
+"""
+
+from __future__ import annotations
+
+import math
+from pathlib import Path
+
+import numpy as np
+from scipy import ndimage
+
+from sim_envs.scenes.episodes import SCENES_ROOT, Episode, EpisodeSet, Goal, load_episodes, save_episodes
+from sim_envs.scenes.floorplan import occupancy_grid
+from sim_envs.scenes.format import Scene, load_scene
+
+__all__ = ["generate_search_episodes", "default_search_episodes", "DEFAULT_SEARCH_FILE", "room_of"]
+
+DEFAULT_SEARCH_FILE = SCENES_ROOT / "household" / "episodes-v1.jsonl"
+"""The shipped object-search episodes."""
+
+
+def room_of(scene: Scene, xy) -> str | None:
+    """Id of the room whose floor contains ``xy`` (None: in no room)."""
+    for r in scene.rooms:
+        if r.contains(xy):
+            return r.id
+    return None
+
+
+def _goal_mask(occ, lo, hi, radius: float) -> np.ndarray:
+    cx, cy = occ.centres()
+    dx = np.maximum(np.maximum(lo[0] - cx, 0), cx - hi[0])
+    dy = np.maximum(np.maximum(lo[1] - cy, 0), cy - hi[1])
+    return np.hypot(dx, dy) <= radius
+
+
+def generate_search_episodes(
+    scene_files: list[Path], *, per_scene: int = 5, generator_seed: int = 0, max_steps: int = 250,
+    robot_radius: float = 0.25, success_distance: float = 1.0, scenes_root: str | Path | None = None,
+) -> EpisodeSet:
+    """``per_scene`` episodes for each scene file (paths under ``scenes/``).
+
+    Goals are distinct objects of the scene; the start is a free cell (clearance >= robot radius
+    + 0.1 m) in another room, with a finite geodesic distance to the goal's success region.
+    Everything follows from ``generator_seed``. Scene paths in the episodes are relative to
+    ``scenes_root`` (default: the shipped ``scenes/`` folder).
+    """
+    from sim_envs.envs.object_search import geodesic_to_goal
+
+    rng = np.random.default_rng(generator_seed)
+    episodes = []
+    for path in scene_files:
+        path = Path(path)
+        scene = load_scene(path)
+        if not scene.rooms:
+            raise ValueError(f"{path}: expected a household scene with rooms")
+        rel = path.resolve().relative_to(Path(scenes_root or SCENES_ROOT).resolve()).as_posix()
+        occ = occupancy_grid(scene, cell=0.05)
+        clearance = ndimage.distance_transform_edt(~occ.blocked_hw) * occ.cell
+        free = clearance > robot_radius
+        starts = np.argwhere(clearance > robot_radius + 0.1)
+        cx, cy = occ.centres()
+        order = rng.permutation(len(scene.objects))
+        made = 0
+        for oi in order:
+            if made >= per_scene:
+                break
+            obj = scene.objects[int(oi)]
+            goal_room = room_of(scene, obj.position[:2])
+            lo, hi = obj.footprint()
+            mask = _goal_mask(occ, lo, hi, success_distance)
+            for _ in range(40):
+                r, c = starts[int(rng.integers(len(starts)))]
+                xy = (float(cx[r, c]), float(cy[r, c]))
+                if room_of(scene, xy) in (None, goal_room):
+                    continue
+                if not math.isfinite(geodesic_to_goal(free, occ.origin, occ.cell, xy, mask)):
+                    continue
+                yaw = float(rng.uniform(-math.pi, math.pi))
+                episodes.append(
+                    Episode(
+                        episode_id=f"search-v1-{len(episodes):04d}", scene=rel, scene_seed=scene.seed,
+                        instruction=f"the {obj.name}", goals=(Goal(obj.id),),
+                        start_pose=(round(xy[0], 3), round(xy[1], 3), round(yaw, 4)), max_steps=max_steps,
+                    )
+                )
+                made += 1
+                break
+    return EpisodeSet("object_search", int(generator_seed), tuple(episodes))
+
+
+def default_search_episodes() -> EpisodeSet:
+    """The shipped object-search episodes (``scenes/household/episodes-v1.jsonl``)."""
+    return load_episodes(DEFAULT_SEARCH_FILE)
+
+
+def main() -> None:
+    files = sorted((SCENES_ROOT / "household").glob("household-*.json"))
+    if not files:
+        raise SystemExit(f"no household scene files under {SCENES_ROOT / 'household'}")
+    eps = generate_search_episodes(files, per_scene=5, generator_seed=0)
+    save_episodes(eps, DEFAULT_SEARCH_FILE)
+    print(f"wrote {len(eps.episodes)} episodes to {DEFAULT_SEARCH_FILE}")
+
+
+if __name__ == "__main__":
+    main()

@@ -1,0 +1,387 @@
+"""Retrieval metrics of the embedded image tower on labelled crops.
+
+Every metric is top-1 crop-to-text retrieval: a crop is embedded, compared by cosine with
+the embeddings of a list of query texts, and counts as right when the best text is its
+own. The texts are what a user would type, not the training targets:
+
+* ``instance``: the 70 instance names ("red mug"), every colour x category, held-out
+  ones included;
+* ``category``: "a mug", "a can", ... (7);
+* ``colour``: "red", "green", ... (10);
+* ``paraphrase``: every distinct category description ("something to drink", "a coffee
+  mug", ...); right when the best one describes the crop's category (a phrase shared by
+  two categories counts for both);
+* ``background``: the 70 names plus the background class's first phrase; right when the
+  background phrase wins.
+
+It also calibrates the tower's **score floor** (:func:`calibrate_score_floor`): the median
+cosine score the best region of a map query must reach for an agent's
+:class:`~agents.concept_map.ConceptMapper` to report the object found. Run
+``python -m tower_training.evaluate --calibrate-floor`` to measure it on shipped tabletop
+scenes and write it into the shipped ``tower.json`` (``metrics.score_floor``).
+"""
+
+from __future__ import annotations
+
+import argparse
+import json
+import math
+import sys
+import time
+from dataclasses import dataclass
+from pathlib import Path
+from typing import Callable, Sequence
+
+import numpy as np
+
+from tower_training.data import BACKGROUND_CLASS, SOURCES, CropData, ObjectClass
+
+__all__ = [
+    "top1", "evaluate_crops", "FloorConfig", "map_query_scores", "choose_floor", "floor_rates",
+    "calibrate_score_floor", "write_score_floor", "orbit_scan", "main",
+]
+
+
+def top1(emb_nd: np.ndarray, texts_td: np.ndarray, correct_nt: np.ndarray) -> float:
+    """Fraction of rows whose best-matching text is marked correct (NaN for no rows).
+
+    Shape:
+        (n, d), (T, d), (n, T) bool -> float.
+    """
+    if len(emb_nd) == 0:
+        return float("nan")
+    best = np.argmax(emb_nd @ texts_td.T, axis=1)
+    return float(np.mean(correct_nt[np.arange(len(best)), best]))
+
+
+def evaluate_crops(
+    embed_fn: Callable[[list], np.ndarray],
+    text_encoder,
+    data: CropData,
+    instances: Sequence[ObjectClass],
+    *,
+    test_seeds: Sequence[int],
+    held_out_instances: Sequence[str],
+    held_out_category: str,
+) -> dict:
+    """Every metric of the model card, with the number of crops behind each.
+
+    Args:
+        embed_fn: crops -> (n, d) unit rows (the tower).
+        text_encoder: the text tower.
+        data: crops labelled with a vocabulary holding every name of ``instances`` (and
+            optionally the background class).
+        instances: every colour x category class.
+        test_seeds: scenes never used for training (unseen viewpoints and arrangements).
+        held_out_instances, held_out_category: what training never saw.
+
+    Returns:
+        ``{metric: {"top1": float, "n": int}}``.
+    """
+    names = [c.name for c in instances]
+    cls_of = {c.name: c for c in instances}
+    if held_out_category not in {c.category for c in instances}:
+        raise ValueError(f"held_out_category: expected one of the instances' categories, got {held_out_category!r}")
+    lab_name = np.array(data.class_names, dtype=object)[data.labels]
+    is_obj = np.isin(data.sources, [SOURCES.index("gt"), SOURCES.index("proposer")]) & np.isin(lab_name, names)
+    test = np.isin(data.seeds, np.asarray(test_seeds))
+    held_inst = np.isin(lab_name, list(held_out_instances))
+    held_cat = np.array([n in cls_of and cls_of[n].category == held_out_category for n in lab_name], bool)
+    seen = is_obj & ~held_inst & ~held_cat
+
+    sets = {
+        "seen_unseen_view": seen & test,
+        "seen_unseen_view_gt_crops": seen & test & (data.sources == SOURCES.index("gt")),
+        "seen_unseen_view_proposer_crops": seen & test & (data.sources == SOURCES.index("proposer")),
+        "held_out_instances": is_obj & held_inst,
+        "held_out_category": is_obj & held_cat,
+    }
+    need = np.zeros(len(data), bool)
+    for m in sets.values():
+        need |= m
+    bg = data.sources == SOURCES.index("background")
+    need |= bg & test
+    idx = np.flatnonzero(need)
+    emb = np.zeros((len(data), 0), np.float32)
+    if len(idx):
+        e = np.asarray(embed_fn([data.images[i] for i in idx]), np.float32)
+        emb = np.zeros((len(data), e.shape[1]), np.float32)
+        emb[idx] = e
+
+    categories = sorted({c.category for c in instances})
+    colours = sorted({c.color for c in instances})
+    phrases = sorted({p for c in instances for p in c.phrases[2:]})
+    t_names = text_encoder.encode_text(names)
+    t_cat = text_encoder.encode_text([f"a {c}" for c in categories])
+    t_col = text_encoder.encode_text(colours)
+    t_phr = text_encoder.encode_text(phrases)
+    t_bg = text_encoder.encode_text([BACKGROUND_CLASS.phrases[0]])
+
+    def correct(rows, fn, cands) -> np.ndarray:
+        return np.array([[fn(lab_name[r], c) for c in cands] for r in rows], bool).reshape(len(rows), len(cands))
+
+    out: dict[str, dict] = {}
+    for key, mask in sets.items():
+        rows = np.flatnonzero(mask)
+        e = emb[rows]
+        out[f"{key}/instance"] = {"top1": top1(e, t_names, correct(rows, lambda n, c: n == c, names)), "n": len(rows)}
+        out[f"{key}/category"] = {
+            "top1": top1(e, t_cat, correct(rows, lambda n, c: cls_of[n].category == c, categories)), "n": len(rows)}
+        out[f"{key}/colour"] = {
+            "top1": top1(e, t_col, correct(rows, lambda n, c: cls_of[n].color == c, colours)), "n": len(rows)}
+        out[f"{key}/paraphrase"] = {
+            "top1": top1(e, t_phr, correct(rows, lambda n, p: p in cls_of[n].phrases, phrases)), "n": len(rows)}
+    rows = np.flatnonzero(bg & test)
+    cand = np.concatenate([t_names, t_bg])
+    ok = np.zeros((len(rows), len(cand)), bool)
+    ok[:, -1] = True
+    out["background_unseen_view/background"] = {"top1": top1(emb[rows], cand, ok), "n": len(rows)}
+    return out
+
+
+# --------------------------------------------------------------------------------------------
+# Score floor: "is this object in the map at all?"
+# --------------------------------------------------------------------------------------------
+
+
+@dataclass(frozen=True)
+class FloorConfig:
+    """What the score-floor calibration scans and queries (cheap by default: ~1 min on 2 cores)."""
+
+    calibration_scenes: tuple[str, ...] = (
+        "tabletop-0111", "tabletop-1448", "tabletop-2416", "tabletop-3988", "tabletop-5749", "tabletop-7474",
+    )
+    """Shipped tabletop scenes the floor is chosen on (every 8th shipped scene)."""
+    validation_scenes: tuple[str, ...] = (
+        "tabletop-1055", "tabletop-1573", "tabletop-2859", "tabletop-4881", "tabletop-6667", "tabletop-8559",
+    )
+    """Other shipped tabletop scenes (every 8th from the 5th), on which the chosen floor is only measured."""
+    frames: int = 12
+    """Frames of the orbit scan (as the ``query`` map suite)."""
+    width: int = 160
+    height: int = 120
+    min_pixels: int = 60
+    """An object counts as present when the scan saw at least this many of its pixels in all."""
+
+
+def _shipped_tabletop_vocabulary() -> list[str]:
+    from sim_envs.scenes.episodes import SCENES_ROOT
+    from sim_envs.scenes.format import load_scene
+
+    return sorted({o.name for p in (SCENES_ROOT / "tabletop").glob("tabletop-*.json") for o in load_scene(p).objects})
+
+
+def orbit_scan(scene, frames: int, width: int, height: int):
+    """The orbit scan of a scene (as :func:`harness.maps.scan.scan_scene`): observations and
+    the number of pixels seen of each object."""
+    from sim_envs.mujoco.camera import MujocoRGBDCamera
+    from sim_envs.mujoco.scene import build_mujoco
+    from sim_envs.envs.scene_scan import scan_trajectory
+
+    sim = build_mujoco(scene)
+    cam = MujocoRGBDCamera(sim.model, sim.data, width, height, geom_object=sim.geom_object)
+    obs, seen = [], np.zeros(len(scene.objects), np.int64)
+    try:
+        for eye, target in scan_trajectory(scene, frames):
+            cam.set_pose(eye, target)
+            f = cam.render()
+            obs.append({"rgb": f.rgb.copy(), "depth": f.depth.copy(), "K": f.K.copy(), "cam_to_world": f.cam_to_world.copy()})
+            ids, counts = np.unique(f.segmentation[f.segmentation >= 0], return_counts=True)
+            seen[ids] += counts
+    finally:
+        cam.close()
+    return obs, seen
+
+
+def _best_region_score(res) -> float:
+    """The statistic :meth:`ConceptMapper.locate` compares with its floor: the largest median
+    cosine score of a region; ``-inf`` when nothing passed the relevancy test (never found)."""
+    if not res.found:
+        return -math.inf
+    return max(float(np.median(r.scores_n)) for r in res.regions)
+
+
+def map_query_scores(
+    scene_id: str, encoder, proposer, vocabulary: Sequence[str], config: FloorConfig = FloorConfig()
+) -> dict:
+    """Scan one shipped tabletop scene, fuse a map, and score every name of ``vocabulary``.
+
+    The map is built as :func:`agents.builtin.make_mapper` builds it, but without a floor
+    (``min_score=None``), so the returned score is the one the floor is compared with.
+
+    Returns:
+        ``{"scene", "present": {name: score}, "absent": {name: score}, "unseen": [names]}``:
+        names of objects the scan saw (``present``), vocabulary names of no object in the
+        scene (``absent``), and names of objects in the scene that the scan saw too little of
+        (``unseen``, not scored). A score is ``-inf`` when the query is not found even without
+        a floor.
+    """
+    from agents.concept_map import ConceptMapper, MapperConfig
+    from sim_envs.scenes.episodes import SCENES_ROOT
+    from sim_envs.scenes.format import load_scene
+
+    scene = load_scene(SCENES_ROOT / "tabletop" / f"{scene_id}.json")
+    obs, seen = orbit_scan(scene, config.frames, config.width, config.height)
+    mapper = ConceptMapper(encoder, proposer, MapperConfig(min_score=None))
+    mapper.reset()
+    for o in obs:
+        mapper.integrate(o)
+    pixels: dict[str, int] = {}
+    for obj, n in zip(scene.objects, seen):
+        pixels[obj.name] = pixels.get(obj.name, 0) + int(n)
+    present = sorted(n for n, px in pixels.items() if px >= config.min_pixels)
+    unseen = sorted(n for n, px in pixels.items() if px < config.min_pixels)
+    absent = sorted(set(vocabulary) - set(pixels))
+    return {
+        "scene": scene_id,
+        "present": {n: _best_region_score(mapper.locate(n)) for n in present},
+        "absent": {n: _best_region_score(mapper.locate(n)) for n in absent},
+        "unseen": unseen,
+    }
+
+
+def floor_rates(present: Sequence[float], absent: Sequence[float], floor: float) -> tuple[float, float]:
+    """(present found rate, absent rejected rate) of a floor: found when score >= floor."""
+    p, a = np.asarray(present, np.float64), np.asarray(absent, np.float64)
+    found = float(np.mean(p >= floor)) if p.size else float("nan")
+    rejected = float(np.mean(a < floor)) if a.size else float("nan")
+    return found, rejected
+
+
+def choose_floor(present: Sequence[float], absent: Sequence[float]) -> float:
+    """The floor in (0, 1) that maximises balanced accuracy (mean of the present-found and
+    absent-rejected rates); among equally good floors, the middle of the widest gap between
+    consecutive observed scores. A score of ``-inf`` (not found even without a floor) counts as
+    not found at every floor.
+    """
+    p, a = np.asarray(present, np.float64), np.asarray(absent, np.float64)
+    if not p.size or not a.size:
+        raise ValueError(f"choose_floor: expected present and absent scores, got {p.size} and {a.size}")
+    vals = np.unique(np.clip(np.concatenate([p, a])[np.isfinite(np.concatenate([p, a]))], 0.0, 1.0))
+    edges = np.concatenate([[0.0], vals, [1.0]])
+    best, best_key = 0.5, (-1.0, -1.0)
+    for lo, hi in zip(edges[:-1], edges[1:]):
+        if hi <= lo:
+            continue
+        mid = 0.5 * (lo + hi)
+        ba = float(np.mean(floor_rates(p, a, mid)))
+        key = (round(ba, 12), hi - lo)
+        if key > best_key:
+            best, best_key = mid, key
+    return float(best)
+
+
+def calibrate_score_floor(config: FloorConfig = FloorConfig(), *, encoder=None, log=print) -> dict:
+    """Measure map-query scores on shipped tabletop scenes and choose the score floor.
+
+    Present names: objects of the scene the scan saw. Absent names: every other name of the
+    shipped tabletop vocabulary (objects of other scenes), so same-colour and same-kind near
+    misses are included. The floor maximises balanced accuracy on ``calibration_scenes``
+    (:func:`choose_floor`); its rates are also measured on ``validation_scenes``.
+
+    Args:
+        encoder: the encoder to calibrate (default: the shipped embedded tower).
+
+    Returns:
+        ``{"score_floor", "calibration": {...}, "validation": {...}, "config": {...}}``, each
+        split with ``present_found``, ``absent_rejected``, ``balanced_accuracy``,
+        ``n_present``, ``n_absent`` and its scenes.
+    """
+    from dataclasses import asdict
+
+    from conceptfusion.perception.registry import make_encoder
+    from conceptfusion.perception.masks.registry import make_proposer
+
+    enc = make_encoder("embedded") if encoder is None else encoder
+    proposer = make_proposer("rgbd")
+    vocab = _shipped_tabletop_vocabulary()
+    per_split: dict[str, list[dict]] = {}
+    for split, scenes in (("calibration", config.calibration_scenes), ("validation", config.validation_scenes)):
+        per_split[split] = []
+        for sid in scenes:
+            t0 = time.perf_counter()
+            r = map_query_scores(sid, enc, proposer, vocab, config)
+            per_split[split].append(r)
+            log(f"{split} {sid}: {len(r['present'])} present, {len(r['absent'])} absent names "
+                f"({time.perf_counter() - t0:.1f} s)")
+
+    def pooled(rs):
+        return ([s for r in rs for s in r["present"].values()], [s for r in rs for s in r["absent"].values()])
+
+    floor = round(choose_floor(*pooled(per_split["calibration"])), 3)
+    out: dict = {"score_floor": floor, "config": {k: list(v) if isinstance(v, tuple) else v for k, v in asdict(config).items()}}
+    for split, rs in per_split.items():
+        p, a = pooled(rs)
+        found, rejected = floor_rates(p, a, floor)
+        fp = [f"{r['scene']}: {n} ({s:.2f})" for r in rs for n, s in r["absent"].items() if s >= floor]
+        fn = [f"{r['scene']}: {n} ({s:.2f})" if math.isfinite(s) else f"{r['scene']}: {n} (not found)"
+              for r in rs for n, s in r["present"].items() if s < floor]
+        # the hard absent names: same colour word as an object the scan saw ("blue mug" beside a blue can)
+        hard = [s for r in rs for n, s in r["absent"].items()
+                if n.split()[0] in {q.split()[0] for q in r["present"]}]
+        out[split] = {
+            "present_found": round(found, 4), "absent_rejected": round(rejected, 4),
+            "absent_rejected_same_colour": round(floor_rates([], hard, floor)[1], 4), "n_absent_same_colour": len(hard),
+            "balanced_accuracy": round(0.5 * (found + rejected), 4),
+            "absent_found_without_floor": round(float(np.mean(np.isfinite(a))), 4),
+            "n_present": len(p), "n_absent": len(a), "scenes": [r["scene"] for r in rs],
+            "missed_present": fn, "found_absent_count": len(fp),
+        }
+    return out
+
+
+def write_score_floor(result: dict, tower_dir: str | Path | None = None) -> Path:
+    """Write a calibration (:func:`calibrate_score_floor`) into ``tower.json`` atomically:
+    ``metrics.score_floor`` (what :func:`agents.builtin.make_mapper` reads) and
+    ``metrics.score_floor_calibration`` (the measured rates)."""
+    from conceptfusion.perception.image_tower import SHIPPED_TOWER_DIR
+    from conceptfusion.io_utils import atomic_write_text
+
+    path = Path(SHIPPED_TOWER_DIR if tower_dir is None else tower_dir) / "tower.json"
+    info = json.loads(path.read_text())
+    metrics = info.setdefault("metrics", {})
+    metrics["score_floor"] = float(result["score_floor"])
+    metrics["score_floor_calibration"] = {k: v for k, v in result.items() if k != "score_floor"}
+    atomic_write_text(path, json.dumps(info, indent=2, sort_keys=True))
+    return path
+
+
+def _parser() -> argparse.ArgumentParser:
+    p = argparse.ArgumentParser(prog="python -m tower_training.evaluate",
+                                description="Evaluate the embedded image tower in maps.")
+    p.add_argument("--calibrate-floor", action="store_true",
+                   help="measure map-query scores on shipped tabletop scenes, choose the score floor and write it into tower.json")
+    p.add_argument("--tower-dir", default=None, help="tower folder (default: the shipped tower)")
+    p.add_argument("--dry-run", action="store_true", help="print the calibration, write nothing")
+    return p
+
+
+def main(argv: list[str] | None = None) -> int:
+    args = _parser().parse_args(argv)
+    if not args.calibrate_floor:
+        _parser().print_help()
+        return 2
+    encoder = None
+    if args.tower_dir is not None:
+        from conceptfusion.perception.registry import make_encoder
+
+        encoder = make_encoder(f"embedded:{args.tower_dir}")
+    t0 = time.perf_counter()
+    result = calibrate_score_floor(encoder=encoder)
+    for split in ("calibration", "validation"):
+        r = result[split]
+        print(f"{split}: floor {result['score_floor']:.3f}: present found {r['present_found']:.3f} (n={r['n_present']}), "
+              f"absent rejected {r['absent_rejected']:.3f} (n={r['n_absent']}; found without a floor "
+              f"{r['absent_found_without_floor']:.3f}; same colour as a present object rejected "
+              f"{r['absent_rejected_same_colour']:.3f}, n={r['n_absent_same_colour']}), "
+              f"balanced accuracy {r['balanced_accuracy']:.3f}")
+        for m in r["missed_present"]:
+            print(f"  missed present: {m}")
+    print(f"({time.perf_counter() - t0:.0f} s)")
+    if not args.dry_run:
+        print(f"wrote {write_score_floor(result, args.tower_dir)}")
+    return 0
+
+
+if __name__ == "__main__":
+    sys.exit(main())

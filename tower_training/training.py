@@ -1,0 +1,177 @@
+"""LiT-style training of the embedded image tower against a frozen text tower.
+
+Each class (an object instance, or a category) has several phrases: its name and a few
+descriptions ("a bottle of wine", "something to drink"). Their text embeddings, averaged
+and re-normalised, are the class's fixed target. The image tower learns to put every crop
+of the class next to that target with a softmax cross-entropy over all training classes
+(a contrastive loss whose "text side" is frozen), with a learned logit scale as in CLIP.
+
+Augmentations model what the mask proposer hands the tower: loose or tight boxes (random
+resized crops), partial occlusion (cut-out patches), brightness/contrast changes and
+mirror images. Hue is never changed: colour words are part of the text.
+"""
+
+from __future__ import annotations
+
+import logging
+import math
+from dataclasses import dataclass, field
+from typing import Sequence
+
+import numpy as np
+
+from conceptfusion.perception.image_tower import TowerConfig, build_tower, preprocess
+
+__all__ = ["CropSet", "TrainConfig", "class_targets", "train_tower", "retrieval_accuracy", "augment"]
+
+logger = logging.getLogger(__name__)
+
+
+@dataclass(frozen=True)
+class CropSet:
+    """Crops with class labels.
+
+    Shape:
+        ``images``: n arrays (h_i, w_i, 3) uint8; ``labels`` (n,) int64 indices into the
+        class list they are used with.
+    """
+
+    images: list
+    labels: np.ndarray
+
+    def __post_init__(self) -> None:
+        if len(self.images) != len(self.labels):
+            raise ValueError(f"CropSet: {len(self.images)} images but {len(self.labels)} labels")
+
+    def subset(self, mask: np.ndarray) -> "CropSet":
+        idx = np.flatnonzero(mask)
+        return CropSet([self.images[i] for i in idx], np.asarray(self.labels)[idx])
+
+
+@dataclass(frozen=True)
+class TrainConfig:
+    """Optimisation settings of :func:`train_tower`."""
+
+    steps: int = 1500
+    """Optimiser steps."""
+    batch_size: int = 128
+    """Crops per step."""
+    lr: float = 2e-3
+    """Peak AdamW learning rate (cosine decay after a 5% warm-up)."""
+    weight_decay: float = 0.05
+    """AdamW weight decay."""
+    seed: int = 0
+    """Seeds torch and the augmentation generator."""
+    tower: TowerConfig = field(default_factory=TowerConfig)
+    """Architecture."""
+
+
+def class_targets(text_encoder, class_phrases: Sequence[Sequence[str]]) -> np.ndarray:
+    """Mean of each class's phrase embeddings, re-normalised.
+
+    Shape:
+        C lists of phrases -> (C, d) float32 unit rows.
+    """
+    flat = [p for phrases in class_phrases for p in phrases]
+    if not flat or any(len(p) == 0 for p in class_phrases):
+        raise ValueError("class_phrases: expected at least one phrase per class")
+    emb = np.asarray(text_encoder.encode_text(flat), np.float64)
+    out, i = [], 0
+    for phrases in class_phrases:
+        v = emb[i : i + len(phrases)].mean(axis=0)
+        out.append(v / max(np.linalg.norm(v), 1e-12))
+        i += len(phrases)
+    return np.asarray(out, np.float32)
+
+
+def augment(image: np.ndarray, rng: np.random.Generator) -> np.ndarray:
+    """One random view of a crop (see the module docstring).
+
+    Shape:
+        (h, w, 3) uint8 -> (h', w', 3) uint8.
+    """
+    h, w = image.shape[:2]
+    scale = rng.uniform(0.65, 1.0)
+    ch, cw = max(2, int(round(h * math.sqrt(scale) * rng.uniform(0.85, 1.15)))), max(2, int(round(w * math.sqrt(scale))))
+    ch, cw = min(ch, h), min(cw, w)
+    r0 = int(rng.integers(0, h - ch + 1))
+    c0 = int(rng.integers(0, w - cw + 1))
+    out = image[r0 : r0 + ch, c0 : c0 + cw].astype(np.float32)
+    if rng.random() < 0.5:
+        out = out[:, ::-1]
+    gain = rng.uniform(0.7, 1.3)
+    bias = rng.uniform(-20, 20)
+    mean = out.mean()
+    contrast = rng.uniform(0.8, 1.2)
+    out = (out - mean) * contrast + mean
+    out = out * gain + bias
+    if rng.random() < 0.4:  # partial occlusion
+        oh, ow = int(ch * rng.uniform(0.2, 0.45)), int(cw * rng.uniform(0.2, 0.45))
+        if oh > 0 and ow > 0:
+            y, x = int(rng.integers(0, ch - oh + 1)), int(rng.integers(0, cw - ow + 1))
+            out[y : y + oh, x : x + ow] = rng.uniform(0, 255, 3)
+    return np.clip(out, 0, 255).astype(np.uint8)
+
+
+def train_tower(train: CropSet, targets_cd: np.ndarray, config: TrainConfig = TrainConfig(), *, log_every: int = 100):
+    """Train a tower so crops land on their class targets; returns the torch module (eval mode).
+
+    Shape:
+        ``targets_cd`` (C, d) unit rows, C > max(train.labels), d = config.tower.embed_dim.
+    """
+    import torch
+
+    if targets_cd.shape[1] != config.tower.embed_dim:
+        raise ValueError(
+            f"targets_cd: expected dimension {config.tower.embed_dim} (the tower's embed_dim), got {targets_cd.shape[1]}"
+        )
+    if len(train.labels) == 0:
+        raise ValueError("train: expected at least one crop")
+    torch.manual_seed(config.seed)
+    rng = np.random.default_rng(config.seed)
+    model = build_tower(config.tower)
+    logit_scale = torch.nn.Parameter(torch.tensor(math.log(10.0)))
+    # the temperature is not decayed: decay would pull the logit scale towards 1
+    opt = torch.optim.AdamW([{"params": list(model.parameters())}, {"params": [logit_scale], "weight_decay": 0.0}],
+                            lr=config.lr, weight_decay=config.weight_decay)
+    warm = max(1, config.steps // 20)
+
+    def lr_at(step: int) -> float:
+        if step < warm:
+            return config.lr * (step + 1) / warm
+        t = (step - warm) / max(1, config.steps - warm)
+        return config.lr * 0.5 * (1 + math.cos(math.pi * t))
+
+    targets = torch.from_numpy(np.ascontiguousarray(targets_cd, np.float32))
+    labels = np.asarray(train.labels, np.int64)
+    model.train()
+    for step in range(config.steps):
+        idx = rng.integers(0, len(labels), config.batch_size)
+        x = torch.from_numpy(preprocess([augment(train.images[i], rng) for i in idx], config.tower.input_size))
+        y = torch.from_numpy(labels[idx])
+        for g in opt.param_groups:
+            g["lr"] = lr_at(step)
+        emb = model(x)
+        logits = logit_scale.exp().clamp(max=100.0) * emb @ targets.T
+        loss = torch.nn.functional.cross_entropy(logits, y)
+        opt.zero_grad(set_to_none=True)
+        loss.backward()
+        opt.step()
+        if log_every and (step % log_every == 0 or step == config.steps - 1):
+            acc = float((logits.argmax(1) == y).float().mean())
+            logger.info("step %d/%d loss %.3f batch acc %.2f scale %.1f", step, config.steps, loss.item(), acc, logit_scale.exp().item())
+    return model.eval()
+
+
+def retrieval_accuracy(embed_fn, crops: CropSet, targets_cd: np.ndarray, *, candidates: np.ndarray | None = None) -> float:
+    """Top-1 crop-to-text retrieval accuracy.
+
+    ``embed_fn(images) -> (n, d)``; each crop is matched against the rows of ``targets_cd``
+    (optionally only the class indices in ``candidates``).
+    """
+    if len(crops.labels) == 0:
+        return float("nan")
+    emb = np.asarray(embed_fn(crops.images), np.float32)
+    cand = np.arange(len(targets_cd)) if candidates is None else np.asarray(candidates)
+    pred = cand[np.argmax(emb @ targets_cd[cand].T, axis=1)]
+    return float(np.mean(pred == np.asarray(crops.labels)))
