@@ -108,7 +108,7 @@ class FrameSearcher:
     def act(self, observation, info: dict | None = None) -> np.ndarray:
         pose = np.asarray(observation["base_pose"], np.float64)
         if not self._started:
-            names = dict(enumerate(info["object_names"])) if (self.mapper.oracle and info) else None
+            names = dict(enumerate(info["object_names"])) if (self.mapper.privileged and info and "object_names" in info) else None
             self.mapper.reset(names)
             self._goal = str(observation["goal"])
             self._started = True

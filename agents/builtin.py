@@ -3,10 +3,13 @@
 Perception is chosen per agent with ``encoder``:
 
 * ``"oracle"`` (privileged): ground-truth segmentation labelled with the MiniLM text embedding of
-  each object's name (:class:`conceptfusion.perception.oracle.OracleFeatures`), for upper bounds and
-  regression tests that must not depend on perception;
+  each object's name (:class:`conceptfusion.perception.featurizer.OracleFeaturizer`), for upper
+  bounds and regression tests that must not depend on perception;
 * ``"embedded"`` (default): the shipped image tower + MiniLM text tower with RGB-D mask proposals;
 * any other encoder registry spec (``"hf:..."``, ``"onnx:DIR"``, ``"color"``) with ``proposer``.
+
+Either way the mapper is built by :func:`make_mapper` from a
+:class:`~conceptfusion.perception.featurizer.PerceptionSpec`, as the map suites build theirs.
 
 =================  ===================  ==========  ======================================
 name               task                 map         what
@@ -25,27 +28,30 @@ random-walker      object_search        no          random velocities
 from __future__ import annotations
 
 from agents.concept_map import ConceptMapper, MapperConfig
-from agents.registry import AgentSpec, register_agent
+from agents.spec import AgentSpec, register_agent
+from conceptfusion.perception.featurizer import FrameFeaturizer, PerceptionSpec, make_featurizer
 
-__all__ = ["make_mapper", "ORACLE_MIN_SCORE"]
-
-ORACLE_MIN_SCORE = 0.85
-"""Score floor with oracle features: exact names score >= 0.9 against their MiniLM text
-embedding, near-miss names (another colour, another kind) <= 0.75."""
+__all__ = ["make_mapper"]
 
 
-def make_mapper(encoder: str = "embedded", proposer: str = "rgbd", *, persistent: bool = True) -> ConceptMapper:
-    """A :class:`ConceptMapper` for an encoder name (see the module docstring)."""
-    if encoder == "oracle":
-        from conceptfusion.perception.text_tower import MiniLMTextEncoder
+def make_mapper(
+    perception: PerceptionSpec | str | FrameFeaturizer = "embedded", proposer: str = "rgbd", *, persistent: bool = True,
+) -> ConceptMapper:
+    """A :class:`ConceptMapper` for a perception spec (see the module docstring), with the
+    featurizer's score floor.
 
-        return ConceptMapper(MiniLMTextEncoder(), oracle=True, config=MapperConfig(persistent=persistent, min_score=ORACLE_MIN_SCORE))
-    from conceptfusion.perception.registry import make_encoder
-    from conceptfusion.perception.masks.registry import make_proposer
+    ``perception`` is an encoder spec string (``proposer`` then names the mask proposer), a
+    :class:`~conceptfusion.perception.featurizer.PerceptionSpec`, or a featurizer already built.
 
-    enc = make_encoder(encoder)
-    floor = getattr(enc, "info", {}).get("metrics", {}).get("score_floor") if hasattr(enc, "info") else None
-    return ConceptMapper(enc, make_proposer(proposer), MapperConfig(persistent=persistent, min_score=floor))
+    Raises:
+        UnknownNameError: unknown encoder or proposer name (naming the nearest valid ones).
+    """
+    if isinstance(perception, (str, PerceptionSpec)):
+        spec = PerceptionSpec.parse(perception, proposer=proposer) if isinstance(perception, str) else perception
+        featurizer = make_featurizer(spec)
+    else:
+        featurizer = perception
+    return ConceptMapper(featurizer, MapperConfig(persistent=persistent, min_score=featurizer.score_floor))
 
 
 def _map_pusher(encoder: str = "embedded", proposer: str = "rgbd", scan: bool = True):

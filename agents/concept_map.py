@@ -1,17 +1,16 @@
 """Online ConceptFusion mapping for agents: frames in, 3D answers to text queries out.
 
-A :class:`ConceptMapper` owns a :class:`~conceptfusion.map.fusion.PointFusionMap`, an encoder and a
-mask proposer, and turns each posed RGB-D observation into pixel-aligned features (paper
-eqs. 3-6) fused into the map (eqs. 1-2). Agents ask it where a described object is
-(:meth:`ConceptMapper.locate`) and get a 3D region or an explicit "not found".
+A :class:`ConceptMapper` owns a :class:`~conceptfusion.map.fusion.PointFusionMap` and a
+:class:`~conceptfusion.perception.featurizer.FrameFeaturizer` that turns each posed RGB-D frame
+into pixel-aligned features (paper eqs. 3-6) fused into the map (eqs. 1-2). Agents ask it where
+a described object is (:meth:`ConceptMapper.locate`) and get a 3D region or an explicit "not
+found".
 
-Two perception modes:
-
-* **perceived** (default): mask proposals from the RGB-D frame and crop/frame embeddings from
-  an encoder (the embedded tower, or any registry encoder such as real CLIP);
-* **oracle** (privileged): each pixel gets the text embedding of its ground-truth object's
-  name (:class:`~conceptfusion.perception.oracle.OracleFeatures`); it needs the simulator's segmentation,
-  which the caller passes explicitly. Results built on it must say they are privileged.
+Perception is the featurizer's business (built by
+:func:`~conceptfusion.perception.featurizer.make_featurizer`): perceived (mask proposals and an
+encoder) or the privileged oracle (ground-truth segmentation labelled with name embeddings, which
+needs the simulator's segmentation, passed explicitly). :attr:`ConceptMapper.privileged` says
+which; results built on a privileged map must say so.
 
 A single-frame (2.5D) agent uses the same mapper with ``persistent=False``: every frame
 replaces the map, so answers come from the current view only.
@@ -25,10 +24,10 @@ from typing import Mapping, Sequence
 
 import numpy as np
 
+from conceptfusion.frames import RGBDFrame
 from conceptfusion.map.fusion import PointFusionMap
-from conceptfusion.perception.oracle import OracleFeatures
-from conceptfusion.perception.pipeline import frame_features
 from conceptfusion.map.query import NEGATIVE_PHRASES, QueryResult, locate
+from conceptfusion.perception.featurizer import FrameFeaturizer
 
 __all__ = ["ConceptMapper", "MapperConfig", "frame_from_observation"]
 
@@ -54,99 +53,98 @@ class MapperConfig:
     names score >= 0.9 with oracle features."""
 
 
-def frame_from_observation(observation: Mapping) -> tuple[np.ndarray, np.ndarray, np.ndarray, np.ndarray]:
-    """The posed RGB-D frame in an observation: ``rgb``, ``depth``, ``K``, ``cam_to_world``.
+def frame_from_observation(observation: Mapping | RGBDFrame, segmentation: np.ndarray | None = None) -> RGBDFrame:
+    """The posed RGB-D frame in an observation (``rgb``, ``depth``, ``K``, ``cam_to_world``).
+
+    An :class:`~conceptfusion.frames.RGBDFrame` is returned as is (with ``segmentation`` when
+    given). Depth becomes float32, ``K`` and the pose float64.
 
     Shape:
-        returns rgb (H, W, 3) uint8, depth (H, W) float32, K (3, 3), cam_to_world (4, 4).
+        returns a frame of rgb (H, W, 3) uint8, depth (H, W) float32, K (3, 3),
+        cam_to_world (4, 4), segmentation (H, W) int or None.
+
+    Raises:
+        KeyError: a key of the posed frame is missing.
     """
+    if isinstance(observation, RGBDFrame):
+        return observation if segmentation is None else dataclasses.replace(observation, segmentation=segmentation)
     missing = [k for k in ("rgb", "depth", "K", "cam_to_world") if k not in observation]
     if missing:
         raise KeyError(f"observation: expected a posed RGB-D frame with keys rgb, depth, K, cam_to_world; missing {missing}")
-    return (
-        np.asarray(observation["rgb"]),
-        np.asarray(observation["depth"], np.float32),
-        np.asarray(observation["K"], np.float64),
-        np.asarray(observation["cam_to_world"], np.float64),
-    )
+    return RGBDFrame.from_observation({
+        "rgb": np.asarray(observation["rgb"]),
+        "depth": np.asarray(observation["depth"], np.float32),
+        "K": np.asarray(observation["K"], np.float64),
+        "cam_to_world": np.asarray(observation["cam_to_world"], np.float64),
+    }, segmentation)
 
 
 class ConceptMapper:
     """Fuse observations into a concept map and answer text queries.
 
     Args:
-        encoder: image + text encoder (``encode_image``, ``encode_text``, ``dim``). In oracle
-            mode only ``encode_text`` is used.
-        proposer: mask proposer (``propose(rgb, depth, K)``); ignored in oracle mode.
-        config: see :class:`MapperConfig`.
-        oracle: privileged perception from ground-truth segmentation.
+        featurizer: the perception (:func:`~conceptfusion.perception.featurizer.make_featurizer`);
+            its text embeddings answer the queries.
+        config: see :class:`MapperConfig` (``min_score`` is taken as given; builders pass the
+            featurizer's ``score_floor``, see :func:`agents.builtin.make_mapper`).
     """
 
-    def __init__(self, encoder, proposer=None, config: MapperConfig = MapperConfig(), *, oracle: bool = False) -> None:
-        if not oracle and proposer is None:
-            raise ValueError("ConceptMapper: expected a mask proposer (or oracle=True for ground-truth features)")
-        self.encoder, self.proposer, self.config, self.oracle = encoder, proposer, config, bool(oracle)
+    def __init__(self, featurizer: FrameFeaturizer, config: MapperConfig = MapperConfig()) -> None:
+        missing = [a for a in ("features", "encode_text", "reset", "dim") if not hasattr(featurizer, a)]
+        if missing:
+            raise TypeError(f"ConceptMapper: expected a frame featurizer (make_featurizer(...)); "
+                            f"{type(featurizer).__name__} has no {', '.join(missing)}")
+        self.featurizer, self.config = featurizer, config
         self._text_cache: dict[str, np.ndarray] = {}
         self._negatives = None
-        self._oracle_features: OracleFeatures | None = None
-        self.map = PointFusionMap(encoder.dim, max_depth=config.max_depth)
+        self.map = PointFusionMap(featurizer.dim, max_depth=config.max_depth)
         self.frames = 0
 
     @property
     def privileged(self) -> bool:
         """True when the map is built from ground truth (oracle features or a ground-truth proposer)."""
-        return self.oracle or bool(getattr(self.proposer, "privileged", False))
+        return bool(self.featurizer.privileged)
+
+    @property
+    def encoder(self):
+        """The featurizer's encoder (image queries embed crops with it)."""
+        return self.featurizer.encoder
 
     def reset(self, object_names: Mapping[int, str] | None = None) -> None:
-        """Start an empty map. Oracle mode needs the names of the segmentation ids."""
-        self.map = PointFusionMap(self.encoder.dim, max_depth=self.config.max_depth)
+        """Start an empty map. Oracle perception needs the names of the segmentation ids."""
+        self.map = PointFusionMap(self.featurizer.dim, max_depth=self.config.max_depth)
         self.frames = 0
-        if self.oracle:
-            if not object_names:
-                raise ValueError("ConceptMapper(oracle=True).reset: expected object names by segmentation id")
-            self._oracle_features = OracleFeatures(self.encoder, dict(object_names))
+        self.featurizer.reset(object_names)
 
     def text_vector(self, text: str) -> np.ndarray:
-        """The encoder's unit embedding of ``text`` (cached)."""
+        """The featurizer's unit embedding of ``text`` (cached)."""
         if not isinstance(text, str) or not text.strip():
             raise ValueError(f"query: expected a non-empty description, got {text!r}")
         if text not in self._text_cache:
-            self._text_cache[text] = np.asarray(self.encoder.encode_text([text])[0], np.float32)
+            self._text_cache[text] = np.asarray(self.featurizer.encode_text([text])[0], np.float32)
         return self._text_cache[text]
 
     def negatives(self) -> np.ndarray:
         """Embeddings of the generic phrases the calibrated decision contrasts with, (K, d)."""
         if self._negatives is None:
-            self._negatives = np.asarray(self.encoder.encode_text(list(NEGATIVE_PHRASES)), np.float32)
+            self._negatives = np.asarray(self.featurizer.encode_text(list(NEGATIVE_PHRASES)), np.float32)
         return self._negatives
 
-    def integrate(self, observation: Mapping, *, segmentation: np.ndarray | None = None) -> None:
-        """Fuse one posed RGB-D observation.
+    def integrate(self, observation: Mapping | RGBDFrame, *, segmentation: np.ndarray | None = None) -> None:
+        """Fuse one posed RGB-D frame.
 
         Args:
-            observation: ``rgb`` (H, W, 3) uint8, ``depth`` (H, W) metres, ``K`` (3, 3),
+            observation: an :class:`~conceptfusion.frames.RGBDFrame`, or an observation with
+                ``rgb`` (H, W, 3) uint8, ``depth`` (H, W) metres, ``K`` (3, 3),
                 ``cam_to_world`` (4, 4) OpenCV convention.
-            segmentation: (H, W) object index per pixel; required in oracle mode (privileged),
-                and used by a ground-truth proposer; ignored otherwise.
+            segmentation: (H, W) object index per pixel (privileged); required by oracle
+                perception and a ground-truth proposer, ignored otherwise.
         """
-        rgb, depth, K, pose = frame_from_observation(observation)
-        if self.oracle:
-            if self._oracle_features is None:
-                raise RuntimeError("ConceptMapper: call reset(object_names) before integrate() in oracle mode")
-            if segmentation is None:
-                raise ValueError("ConceptMapper(oracle=True).integrate: expected the frame's segmentation")
-            feats = self._oracle_features(segmentation)
-        else:
-            if getattr(self.proposer, "privileged", False):
-                if segmentation is None:
-                    raise ValueError("ConceptMapper: the ground-truth proposer needs the frame's segmentation")
-                masks = self.proposer.propose(rgb, depth, K, segmentation_hw=segmentation)
-            else:
-                masks = self.proposer.propose(rgb, depth, K)
-            feats = frame_features(rgb, masks, self.encoder)
+        frame = frame_from_observation(observation, segmentation)
+        feats = self.featurizer.features(frame)
         if not self.config.persistent:
-            self.map = PointFusionMap(self.encoder.dim, max_depth=self.config.max_depth)
-        self.map.integrate(rgb, depth, K, pose, feats)
+            self.map = PointFusionMap(self.featurizer.dim, max_depth=self.config.max_depth)
+        self.map.integrate(frame.rgb, frame.depth, frame.K, frame.cam_to_world, feats)
         self.frames += 1
 
     def locate(self, text: str) -> QueryResult:

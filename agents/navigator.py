@@ -187,7 +187,7 @@ class MapNavigator:
         pose = np.asarray(observation["base_pose"], np.float64)
         if not self._started:
             self._goal = str(observation["goal"])
-            names = dict(enumerate(info["object_names"])) if (self.mapper.oracle and info) else None
+            names = dict(enumerate(info["object_names"])) if (self.mapper.privileged and info and "object_names" in info) else None
             self.mapper.reset(names)
             self._started = True
         if self._phase == "look" or self._steps % max(1, self.config.integrate_every) == 0:

@@ -17,7 +17,7 @@ import math
 
 import numpy as np
 
-from sim_envs.envs.object_search import geodesic_field
+from planners.geodesic import geodesic_field
 
 __all__ = ["OracleSearchAgent", "descend"]
 

@@ -107,7 +107,7 @@ class MapPusher:
         self.log: list[str] = []
 
     def _map(self, observation, info) -> None:
-        names = dict(enumerate(info["object_names"])) if (self.mapper.oracle and info) else None
+        names = dict(enumerate(info["object_names"])) if (self.mapper.privileged and info and "object_names" in info) else None
         self.mapper.reset(names)
         frames = scan_frames(observation) if self.use_scan else scan_frames({k: observation[k] for k in ("rgb", "depth", "K", "cam_to_world")})
         segs = None

@@ -60,5 +60,5 @@ def render_sequence(num: int, height: int = 240, width: int = 320, dim: int = 51
     out = []
     for pose in room_trajectory(num):
         f = render_boxes(boxes, K, pose, height, width)
-        out.append((f.rgb_hw3, f.depth_hw, K, pose, frame_palette(f.instance_hw, base, rng)))
+        out.append((f.rgb, f.depth, K, pose, frame_palette(f.segmentation, base, rng)))
     return out

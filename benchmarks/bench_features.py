@@ -62,9 +62,9 @@ def best_ious(frames, objects, proposer, min_px: int = 100) -> list[float]:
     """Best IoU of any proposal with each object showing at least ``min_px`` pixels."""
     out = []
     for f in frames:
-        masks = proposer.propose(f.rgb_hw3, f.depth_hw, f.K_33)
+        masks = proposer.propose(f.rgb, f.depth, f.K)
         for obj in objects:
-            truth = f.instance_hw == obj
+            truth = f.segmentation == obj
             if truth.sum() < min_px:
                 continue
             if len(masks) == 0:
@@ -123,9 +123,9 @@ def end_to_end(frames, proposer, prepare, encode):
     stages = {"proposals": [], "crop+resize": [], "encoder": [], "mixing": [], "total": []}
     counts = []
     for f in frames:
-        rgb = f.rgb_hw3
+        rgb = f.rgb
         t0 = time.perf_counter()
-        masks = proposer.propose(rgb, f.depth_hw, f.K_33)
+        masks = proposer.propose(rgb, f.depth, f.K)
         t1 = time.perf_counter()
         batch = prepare([rgb] + crop_masks(rgb, masks))
         t2 = time.perf_counter()
@@ -166,7 +166,7 @@ def main() -> None:
     proposer = RGBDProposer()
     table, table_objects = tabletop_frames(args.frames)
     room, room_objects = room_frames(args.frames)
-    proposer.propose(table[0].rgb_hw3, table[0].depth_hw, table[0].K_33)  # compile the kernels once
+    proposer.propose(table[0].rgb, table[0].depth, table[0].K)  # compile the kernels once
     frames = table + room
 
     print(f"pixel-aligned features of one {H}x{W} frame, {len(frames)} frames (tabletop + room), 2-core CPU\n")
@@ -178,7 +178,7 @@ def main() -> None:
     for runtime in ("torch", "onnxruntime") if torch is not None else ():
         for size in args.sizes:
             cnn = StandInCNN(size, runtime)
-            cnn.encode_batch(cnn.prepare([table[0].rgb_hw3] * 16))  # warm-up
+            cnn.encode_batch(cnn.prepare([table[0].rgb] * 16))  # warm-up
             stages, counts = end_to_end(frames, proposer, cnn.prepare, cnn.encode_batch)
             report(f"stand-in CNN {cnn.params / 1e6:.1f} M params, {size}x{size} crops, 512-d, {runtime}", stages, counts)
     print("\nproposal quality: best IoU of any proposal with each ground-truth object (>= 100 px visible)")

@@ -14,7 +14,8 @@ import time
 from sim_envs.mujoco.camera import MujocoRGBDCamera
 from sim_envs.mujoco.scene import build_mujoco
 from sim_envs.scenes.gen_household import generate_household
-from sim_envs.envs.scene_scan import SceneScanEnv, room_sweep_trajectory
+from sim_envs.envs.scene_scan import SceneScanEnv
+from sim_envs.scenes.trajectories import room_sweep_trajectory
 
 from bench_render import time_mujoco_renders
 

@@ -8,29 +8,29 @@ PyBullet: its tiny renderer and the EGL plugin (llvmpipe here), and the Panda pu
 
 from __future__ import annotations
 
+import itertools
 import statistics
 import time
 
 import math
 
 from sim_envs.mujoco.camera import MujocoRGBDCamera
+from sim_envs.mujoco.scan import iter_views
 from sim_envs.mujoco.scene import build_mujoco
 from sim_envs.scenes.gen_tabletop import generate_tabletop
-from sim_envs.envs.scene_scan import orbit_trajectory
+from sim_envs.scenes.trajectories import orbit_trajectory
 
 
 def time_mujoco_renders(label: str, scene, geom_object, poses, width: int, height: int, segmentation: bool = True) -> float:
     """Render ``poses`` (after one warm-up frame) with a MuJoCo camera, print and return frames/s."""
     sim = build_mujoco(scene)
-    cam = MujocoRGBDCamera(sim.model, sim.data, width, height, geom_object=geom_object(sim))
-    cam.set_pose(*poses[0])
-    cam.render(segmentation=segmentation)
+    frames = iter_views(sim, [poses[0], *poses], width, height, geom_labels=geom_object(sim), segmentation=segmentation)
+    next(frames)  # warm-up: the camera and one frame
     t0 = time.perf_counter()
-    for eye, target in poses:
-        cam.set_pose(eye, target)
-        cam.render(segmentation=segmentation)
+    for _ in itertools.islice(frames, len(poses)):  # stop before the camera is released
+        pass
     dt = time.perf_counter() - t0
-    cam.close()
+    frames.close()
     what = "RGB-D + segmentation" if segmentation else "RGB-D"
     print(f"{label} {what} {width}x{height}: {len(poses) / dt:.0f} frames/s ({1000 * dt / len(poses):.1f} ms/frame)")
     return len(poses) / dt

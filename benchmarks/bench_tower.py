@@ -75,16 +75,17 @@ def main() -> None:
                                   ViewConfig(width=320, height=240))
     encoder.encode_image([np.zeros((64, 64, 3), np.uint8)])  # warm-up
     for v in views:
+        f = v.frame
         for key, prop in proposers.items():
             t0 = time.perf_counter()
             if prop.privileged:
-                masks = prop.propose(v.rgb, v.depth, v.K, segmentation_hw=v.segmentation)
+                masks = prop.propose(f.rgb, f.depth, f.K, segmentation_hw=f.segmentation)
             else:
-                masks = prop.propose(v.rgb, v.depth, v.K)
+                masks = prop.propose(f.rgb, f.depth, f.K)
                 n_masks.append(len(masks))
-            feats = frame_features(v.rgb, masks, encoder)
+            feats = frame_features(f.rgb, masks, encoder)
             times[key].append(time.perf_counter() - t0)
-            results[key] += score_view(feats, v.segmentation, v.object_names, encoder, args.min_px)
+            results[key] += score_view(feats, f.segmentation, v.object_names, encoder, args.min_px)
     print(f"encoder {args.encoder}: {args.scenes} held-out tabletop scenes x {args.views} views (240x320), "
           f"{len(results['rgbd'])} object queries; rgbd proposer {np.mean(n_masks):.1f} masks/frame")
     print(f"{'proposer':<18} {'IoU relative>=0.6':>18} {'IoU best mask':>14} {'best mask IoU>=0.5':>19} {'ms/frame':>9}")

@@ -1,1 +1,16 @@
-"""conceptfusion."""
+"""ConceptFusion, the mapping core: simulator-agnostic, agent-agnostic.
+
+* :mod:`conceptfusion.map` - the PointFusion map with concept vectors (paper eqs. 1-2), its
+  compact feature store, queries and 3D regions, saving and loading;
+* :mod:`conceptfusion.perception` - encoders, mask proposers, pixel-aligned features (eqs. 3-6)
+  and the frame featurizers (perceived or privileged oracle) that feed a map;
+* :mod:`conceptfusion.spatial` - the 3D spatial comparators between map regions;
+* base modules the other packages may share: :mod:`conceptfusion.frames` (the one RGB-D frame
+  type), :mod:`conceptfusion.cameras` (pinhole math, OpenCV convention),
+  :mod:`conceptfusion.errors` (the project's error hierarchy), :mod:`conceptfusion.names`
+  (nearest-name lookups), :mod:`conceptfusion.io_utils` (atomic writes);
+  :mod:`conceptfusion.synthetic` renders exact box scenes for tests and the simulator-free demo.
+
+May import: nothing of this project outside ``conceptfusion`` (no simulator, agent, planner or
+harness module); heavy optional libraries (torch, transformers) only where they are used.
+"""

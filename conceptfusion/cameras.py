@@ -2,8 +2,8 @@
 
 One convention holds everywhere in :mod:`conceptfusion`: the **OpenCV camera frame**
 (x right, y down, z forward) and poses as 4x4 float64 **camera-to-world** matrices.
-The converters at the bottom of this module take simulator cameras (MuJoCo, PyBullet,
-anything OpenGL-style: x right, y up, looking along -z) into that convention.
+Converters from simulator cameras (OpenGL-style poses and depth buffers, MuJoCo, PyBullet)
+live at the simulator edge, in :mod:`sim_envs.cameras` and next to each simulator's camera.
 """
 
 from __future__ import annotations
@@ -13,7 +13,7 @@ import math
 import numpy as np
 
 from conceptfusion._checks import as_array, as_float_array
-from conceptfusion.errors import PoseError, ShapeError
+from conceptfusion.errors import PoseError
 
 __all__ = [
     "intrinsics_from_fovy",
@@ -26,15 +26,7 @@ __all__ = [
     "transform_directions",
     "project_points",
     "radial_confidence",
-    "opengl_to_opencv_pose",
-    "mujoco_camera_pose",
-    "pybullet_camera_pose",
-    "opengl_depth_to_metric",
 ]
-
-# MuJoCo and PyBullet cameras are OpenGL-style: flipping the camera's y and z axes
-# gives the OpenCV frame. The flip is its own inverse.
-_GL_TO_CV = np.diag([1.0, -1.0, -1.0, 1.0])
 
 
 def intrinsics_from_fovy(fovy_deg: float, width: int, height: int) -> np.ndarray:
@@ -203,60 +195,3 @@ def radial_confidence(height: int, width: int, K_33, *, sigma: float = 0.6) -> n
     v = np.arange(height, dtype=np.float64)[:, None] - K[1, 2]
     gamma2 = (u**2 + v**2) / ((width / 2.0) ** 2 + (height / 2.0) ** 2)
     return np.exp(-gamma2 / (2.0 * sigma**2)).astype(np.float32)
-
-
-def opengl_to_opencv_pose(cam_to_world_gl_44) -> np.ndarray:
-    """Convert an OpenGL-style camera-to-world pose (y up, looking along -z) to OpenCV.
-
-    Shape:
-        (4, 4) -> (4, 4) float64. Applying it twice gives back the input.
-    """
-    T = check_pose(cam_to_world_gl_44)
-    return T @ _GL_TO_CV
-
-
-def mujoco_camera_pose(cam_xpos_3, cam_xmat_9) -> np.ndarray:
-    """OpenCV camera-to-world pose of a MuJoCo camera from ``data.cam_xpos``/``data.cam_xmat``.
-
-    MuJoCo's ``cam_xmat`` is the camera-to-world rotation of an OpenGL-style camera.
-
-    Shape:
-        ``cam_xpos_3`` (3,), ``cam_xmat_9`` (9,) or (3, 3) -> (4, 4) float64.
-    """
-    pos = np.asarray(cam_xpos_3, dtype=np.float64).reshape(-1)
-    mat = np.asarray(cam_xmat_9, dtype=np.float64)
-    if pos.shape != (3,) or mat.size != 9:
-        raise ShapeError(f"expected cam_xpos (3,) and cam_xmat (9,) or (3, 3), got {pos.shape}, {mat.shape}")
-    T = np.eye(4)
-    T[:3, :3] = mat.reshape(3, 3)
-    T[:3, 3] = pos
-    return opengl_to_opencv_pose(T)
-
-
-def pybullet_camera_pose(view_matrix_16) -> np.ndarray:
-    """OpenCV camera-to-world pose from a PyBullet view matrix (16 floats, column-major).
-
-    Shape:
-        (16,) -> (4, 4) float64.
-    """
-    view = np.asarray(view_matrix_16, dtype=np.float64)
-    if view.size != 16:
-        raise ShapeError(f"view_matrix_16: expected 16 values, got {view.size}")
-    V = np.reshape(view, (4, 4), order="F")
-    return opengl_to_opencv_pose(np.linalg.inv(V))
-
-
-def opengl_depth_to_metric(depth_buffer_hw: np.ndarray, near: float, far: float) -> np.ndarray:
-    """Metric depth along the optical axis from a standard [0, 1] OpenGL depth buffer.
-
-    ``z = far * near / (far - (far - near) * d)``; buffer value 1 (nothing hit) gives ``inf``.
-
-    Shape:
-        (H, W) -> (H, W) float32.
-    """
-    if not (0 < near < far):
-        raise ValueError(f"near, far: expected 0 < near < far, got {near}, {far}")
-    d = as_float_array("depth_buffer_hw", np.asarray(depth_buffer_hw, dtype=np.float64), shape=(None, None))
-    z = far * near / (far - (far - near) * d)
-    z[d >= 1.0] = np.inf
-    return z.astype(np.float32)

@@ -21,6 +21,7 @@ __all__ = [
     "MissingDependencyError",
     "CheckpointError",
     "UnknownNameError",
+    "UnknownKeyError",
     "SimError",
     "AgentError",
     "PlannerError",
@@ -63,6 +64,13 @@ class CheckpointError(ConceptFusionError, ValueError):
 class UnknownNameError(ConceptFusionError, ValueError):
     """A name looked up in a table of named things (agents, encoders, suites, assets) is not
     there; the message names the nearest valid ones (:func:`conceptfusion.names.lookup`)."""
+
+
+class UnknownKeyError(UnknownNameError, KeyError):
+    """An :class:`UnknownNameError` that is also a ``KeyError``, for lookups whose callers have
+    always caught ``KeyError`` (assets, mesh kinds). Its text is the message, unquoted."""
+
+    __str__ = Exception.__str__
 
 
 class SimError(ConceptFusionError, ValueError):

@@ -8,7 +8,7 @@ sequences) keyed by name; an unknown name raises :class:`~conceptfusion.errors.U
 from __future__ import annotations
 
 import difflib
-from typing import Iterable, Mapping, TypeVar
+from typing import Callable, Iterable, Mapping, TypeVar
 
 from conceptfusion.errors import UnknownNameError
 
@@ -17,28 +17,44 @@ __all__ = ["nearest_names", "did_you_mean", "unknown_name_error", "lookup"]
 V = TypeVar("V")
 
 
-def nearest_names(name: object, choices: Iterable[str], *, n: int = 3, cutoff: float = 0.4) -> list[str]:
-    """Up to ``n`` of ``choices`` closest to ``name`` (most similar first; may be empty)."""
-    return difflib.get_close_matches(str(name), [str(c) for c in choices], n=n, cutoff=cutoff)
+def nearest_names(
+    name: object, choices: Iterable[str], *, n: int = 3, cutoff: float = 0.4, key: Callable[[str], str] | None = None,
+) -> list[str]:
+    """Up to ``n`` of ``choices`` closest to ``name`` (most similar first; may be empty).
+
+    ``key`` normalises both sides before comparing (``str.lower``: case-insensitive); the
+    choices come back as given (the first of several with the same key).
+    """
+    choices = [str(c) for c in choices]
+    if key is None:
+        return difflib.get_close_matches(str(name), choices, n=n, cutoff=cutoff)
+    by_key: dict[str, str] = {}
+    for c in choices:
+        by_key.setdefault(key(c), c)
+    return [by_key[k] for k in difflib.get_close_matches(key(str(name)), list(by_key), n=n, cutoff=cutoff)]
 
 
-def did_you_mean(name: object, choices: Iterable[str], *, n: int = 3, cutoff: float = 0.4) -> str:
-    """``"; did you mean 'a', 'b'?"`` for the nearest choices, or ``""`` when none is close."""
-    near = nearest_names(name, choices, n=n, cutoff=cutoff)
+def did_you_mean(
+    name: object, choices: Iterable[str], *, n: int = 3, cutoff: float = 0.4, key: Callable[[str], str] | None = None,
+) -> str:
+    """``"; did you mean 'a', 'b'?"`` for the nearest choices, or ``""`` when none is close
+    (arguments as :func:`nearest_names`)."""
+    near = nearest_names(name, choices, n=n, cutoff=cutoff, key=key)
     return f"; did you mean {', '.join(repr(c) for c in near)}?" if near else ""
 
 
 def unknown_name_error(
     kind: str, name: object, choices: Iterable[str], *, n: int = 3, cutoff: float = 0.4,
-    listing: str | None = None, error: type[Exception] = UnknownNameError,
+    key: Callable[[str], str] | None = None, listing: str | None = None, error: type[Exception] = UnknownNameError,
 ) -> Exception:
     """The error for an unknown ``name`` of a ``kind`` ("agent", "suite", ...), not raised.
 
     The message reads ``unknown KIND 'NAME'; did you mean ...? (KINDs: a, b, c)``; ``listing``
-    replaces the text in brackets (``""`` drops it).
+    replaces the text in brackets (``""`` drops it). ``n``, ``cutoff`` and ``key`` go to
+    :func:`nearest_names`; ``error`` is the class of the error returned.
     """
     choices = [str(c) for c in choices]
-    hint = did_you_mean(name, choices, n=n, cutoff=cutoff)
+    hint = did_you_mean(name, choices, n=n, cutoff=cutoff, key=key)
     tail = f"{kind}s: {', '.join(choices)}" if listing is None else listing
     return error(f"unknown {kind} {name!r}{hint}" + (f" ({tail})" if tail else ""))
 

@@ -12,8 +12,9 @@ from dataclasses import dataclass
 import numpy as np
 
 from conceptfusion.cameras import check_intrinsics, check_pose
+from conceptfusion.frames import RGBDFrame
 
-__all__ = ["Box", "RenderedFrame", "look_at", "orbit_poses", "render_boxes", "tabletop_boxes"]
+__all__ = ["Box", "look_at", "orbit_poses", "render_boxes", "tabletop_boxes"]
 
 
 @dataclass(frozen=True)
@@ -35,23 +36,6 @@ class Box:
     @property
     def hi(self) -> np.ndarray:
         return np.asarray(self.center, float) + np.asarray(self.size, float) / 2
-
-
-@dataclass(frozen=True)
-class RenderedFrame:
-    """One rendered view.
-
-    Shape:
-        ``rgb_hw3`` (H, W, 3) uint8; ``depth_hw`` (H, W) float32 metres along the optical axis,
-        ``inf`` where nothing is hit; ``instance_hw`` (H, W) int32 box index, -1 for none;
-        ``K_33``; ``cam_to_world_44`` OpenCV pose.
-    """
-
-    rgb_hw3: np.ndarray
-    depth_hw: np.ndarray
-    instance_hw: np.ndarray
-    K_33: np.ndarray
-    cam_to_world_44: np.ndarray
 
 
 def look_at(eye, target, up=(0.0, 0.0, 1.0)) -> np.ndarray:
@@ -100,11 +84,16 @@ def tabletop_boxes() -> list[Box]:
     ]
 
 
-def render_boxes(boxes: list[Box], K_33, cam_to_world_44, height: int, width: int) -> RenderedFrame:
+def render_boxes(boxes: list[Box], K_33, cam_to_world_44, height: int, width: int) -> RGBDFrame:
     """Ray-cast axis-aligned boxes (see the module docstring).
 
     Shading: base colour times a Lambertian term of a fixed light, with a faint checker
     texture so surfaces are not flat colours.
+
+    Shape:
+        returns a frame with ``rgb`` (H, W, 3) uint8; ``depth`` (H, W) float32 metres along
+        the optical axis, ``inf`` where nothing is hit; ``segmentation`` (H, W) int32 box index,
+        -1 for none; ``K`` (3, 3) and ``cam_to_world`` (4, 4) float64 (OpenCV pose).
     """
     K = check_intrinsics(K_33)
     T = check_pose(cam_to_world_44)
@@ -143,10 +132,10 @@ def render_boxes(boxes: list[Box], K_33, cam_to_world_44, height: int, width: in
     rgb = colors[best_id] * (shade * checker)[:, None]
     rgb[~hit] = (30, 30, 40)
     depth = np.where(hit, best_t, np.inf).astype(np.float32)
-    return RenderedFrame(
-        rgb_hw3=np.clip(rgb, 0, 255).astype(np.uint8).reshape(height, width, 3),
-        depth_hw=depth.reshape(height, width),
-        instance_hw=best_id.reshape(height, width),
-        K_33=K,
-        cam_to_world_44=T,
+    return RGBDFrame(
+        rgb=np.clip(rgb, 0, 255).astype(np.uint8).reshape(height, width, 3),
+        depth=depth.reshape(height, width),
+        K=K,
+        cam_to_world=T,
+        segmentation=best_id.reshape(height, width),
     )

@@ -11,7 +11,8 @@ __all__ = ["main"]
 
 
 def _cmd_demo(args: argparse.Namespace) -> int:
-    from harness.demo.run import DemoConfig, run_demo
+    from harness.demo.run import run_demo
+    from harness.demo.scoring import DemoConfig
 
     cfg = DemoConfig(frames=args.frames, height=args.height, width=args.width, encoder=args.encoder,
                      proposer=args.proposer)

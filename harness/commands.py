@@ -46,6 +46,7 @@ def _print_summary(records: list[dict], stream=sys.stdout) -> None:
 
 
 def cmd_run(args: argparse.Namespace) -> int:
+    from conceptfusion.perception.featurizer import PerceptionSpec
     from harness.runner.run import RunConfig, run_suites
     from harness.runner.suites import DEFAULT_SUITES, get_suite
 
@@ -53,8 +54,9 @@ def cmd_run(args: argparse.Namespace) -> int:
     try:
         for s in suites:
             get_suite(s)
+        perception = PerceptionSpec.parse(args.encoder)  # a typo fails here, before anything is written
         config = RunConfig(
-            suites=suites, agents=tuple(args.agent) if args.agent else None, encoder=args.encoder,
+            suites=suites, agents=tuple(args.agent) if args.agent else None, encoder=str(perception),
             agent_kwargs=_parse_kv(args.agent_option), limit=args.limit, seed=args.seed, backend=args.backend,
             workers=args.workers, address=args.address, timeout_s=args.timeout, plugins=tuple(args.plugin or ()),
         )
@@ -116,11 +118,10 @@ def cmd_report(args: argparse.Namespace) -> int:
 
 
 def cmd_list(args: argparse.Namespace) -> int:
-    from agents.registry import AGENTS, _load_builtin
+    from agents.registry import AGENTS
     from conceptfusion.perception.registry import describe_encoders
     from harness.runner.suites import SUITES
 
-    _load_builtin()
     print("suites:")
     for s in SUITES.values():
         print(f"  {s.name:<22} {s.description}")

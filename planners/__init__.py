@@ -6,13 +6,17 @@
 * :mod:`planners.joint_space` - joint-space arm paths with OMPL and a pluggable validity test.
 * :mod:`planners.tracking` - pure-pursuit path following (unicycle commands).
 * :mod:`planners.replan` - is the path ahead blocked now?
+* :mod:`planners.geodesic` - shortest 8-connected path lengths over a grid of free cells.
 * :mod:`planners.push` - push geometry for "push X to the right of the line".
 * :mod:`planners.result` - :class:`PlanResult`, the typed outcome of every planning query.
 
 OMPL is imported only when a plan is requested.
+
+May import: :mod:`conceptfusion`'s base modules (errors, names) only; no simulator, map or agent.
 """
 
 from planners.errors import DegenerateGeometryError, PlannerError, UnknownPlannerError
+from planners.geodesic import geodesic_field, geodesic_to_goal
 from planners.joint_space import plan_joint_path
 from planners.occupancy import GridConfig, OccupancyGrid, build_occupancy_grid, reachable_goal_near
 from planners.ompl_2d import PLANNERS, BasePlannerConfig, plan_base_path
@@ -40,6 +44,8 @@ __all__ = [
     "check_path_blocked",
     "PushPlan",
     "plan_push",
+    "geodesic_field",
+    "geodesic_to_goal",
     "PlanResult",
     "PLAN_STATUSES",
 ]

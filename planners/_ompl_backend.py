@@ -12,14 +12,15 @@ no other thread plans with OMPL at the same time.
 
 from __future__ import annotations
 
-import difflib
 import logging
 import time
+from contextlib import contextmanager
 from dataclasses import dataclass
-from typing import Callable
+from typing import Callable, Iterator
 
 import numpy as np
 
+from conceptfusion.names import unknown_name_error
 from planners.errors import PlannerTypeError, UnknownPlannerError
 
 __all__ = ["PLANNERS", "resolve_planner", "OmplOutcome", "solve"]
@@ -50,12 +51,15 @@ def resolve_planner(name: str) -> str:
     """
     if not isinstance(name, str):
         raise PlannerTypeError(f"planner: expected a str, got {type(name).__name__}")
-    key = name.strip().lower().replace("-", "").replace("_", "").replace("*", "star").replace(" ", "")
+    key = _planner_key(name)
     if key in PLANNERS:
         return key
-    close = difflib.get_close_matches(key, list(PLANNERS), n=3, cutoff=0.5)
-    hint = f"; did you mean {', '.join(close)}?" if close else ""
-    raise UnknownPlannerError(f"unknown planner {name!r}{hint} (valid: {', '.join(PLANNERS)})")
+    raise unknown_name_error("planner", name, PLANNERS, cutoff=0.5, key=_planner_key,
+                             listing=f"valid: {', '.join(PLANNERS)}", error=UnknownPlannerError)
+
+
+def _planner_key(name: str) -> str:
+    return name.strip().lower().replace("-", "").replace("_", "").replace("*", "star").replace(" ", "")
 
 
 @dataclass(frozen=True)
@@ -80,14 +84,38 @@ def _import_ompl():
     return ob, og, ou
 
 
-def _seed_ompl(ou, seed: int) -> None:
-    """Reseed OMPL's seed generator; OMPL needs a non-zero seed and complains on reseeding."""
+@contextmanager
+def _log_level(ou, level) -> Iterator[None]:
+    """OMPL's log level set to ``level`` (``None``: left as it is) inside the block, then restored."""
     previous = ou.getLogLevel()
-    ou.setLogLevel(ou.LogLevel.LOG_NONE)
+    if level is not None:
+        ou.setLogLevel(level)
     try:
-        ou.RNG.setSeed(int(seed) % (2**31 - 1) + 1)
+        yield
     finally:
         ou.setLogLevel(previous)
+
+
+def _seed_ompl(ou, seed: int) -> None:
+    """Reseed OMPL's seed generator; OMPL needs a non-zero seed and complains on reseeding."""
+    with _log_level(ou, ou.LogLevel.LOG_NONE):
+        ou.RNG.setSeed(int(seed) % (2**31 - 1) + 1)
+
+
+def _guarded(check: Callable[..., bool], errors: list[BaseException]) -> Callable[..., bool]:
+    """``check`` as an OMPL callback: an exception it raises is kept in ``errors`` (to re-raise
+    after OMPL returns; OMPL cannot carry it) and answers False, as does every call after it."""
+
+    def guarded(*states) -> bool:
+        if errors:
+            return False
+        try:
+            return bool(check(*states))
+        except BaseException as exc:
+            errors.append(exc)
+            return False
+
+    return guarded
 
 
 _MOTION_VALIDATOR_CLASS = None
@@ -140,154 +168,91 @@ def solve(
         lower, upper, start, goal: (D,) float64.
     """
     ob, og, ou = _import_ompl()
-    previous_level = ou.getLogLevel()
-    if not _LOG.isEnabledFor(logging.DEBUG):
-        # OMPL's default level (INFO) reports every query on stderr; keep warnings and errors.
-        ou.setLogLevel(ou.LogLevel.LOG_WARN)
-    try:
-        return _solve(
-            ob,
-            og,
-            ou,
-            lower=lower,
-            upper=upper,
-            start=start,
-            goal=goal,
-            state_valid=state_valid,
-            planner=planner,
-            time_limit=time_limit,
-            simplify_time=simplify_time,
-            seed=seed,
-            segment_valid=segment_valid,
-            resolution=resolution,
-            use_full_time=use_full_time,
-            planner_range=planner_range,
-        )
-    finally:
-        ou.setLogLevel(previous_level)
+    # OMPL's default level (INFO) reports every query on stderr; keep warnings and errors.
+    with _log_level(ou, None if _LOG.isEnabledFor(logging.DEBUG) else ou.LogLevel.LOG_WARN):
+        dim = int(len(lower))
+        _seed_ompl(ou, seed)
 
+        space = ob.RealVectorStateSpace(dim)
+        bounds = ob.RealVectorBounds(dim)
+        for i in range(dim):
+            bounds.setLow(i, float(lower[i]))
+            bounds.setHigh(i, float(upper[i]))
+        space.setBounds(bounds)
+        si = ob.SpaceInformation(space)
 
-def _solve(
-    ob,
-    og,
-    ou,
-    *,
-    lower: np.ndarray,
-    upper: np.ndarray,
-    start: np.ndarray,
-    goal: np.ndarray,
-    state_valid: Callable[[list], bool],
-    planner: str,
-    time_limit: float,
-    simplify_time: float,
-    seed: int,
-    segment_valid: Callable[[list, list], bool] | None,
-    resolution: float | None,
-    use_full_time: bool,
-    planner_range: float | None,
-) -> OmplOutcome:
-    dim = int(len(lower))
-    _seed_ompl(ou, seed)
+        callback_error: list[BaseException] = []  # re-raised after solve
+        state_check = _guarded(lambda state: state_valid(state[0:dim]), callback_error)  # kept alive while OMPL runs
+        si.setStateValidityChecker(state_check)
+        validator = None
+        if segment_valid is not None:
+            validator = _motion_validator_class(ob)(si, _guarded(segment_valid, callback_error), dim)
+            si.setMotionValidator(validator)
+        elif resolution is not None:
+            extent = space.getMaximumExtent()
+            si.setStateValidityCheckingResolution(min(1.0, max(resolution / extent, 1e-6)))
+        si.setup()
 
-    space = ob.RealVectorStateSpace(dim)
-    bounds = ob.RealVectorBounds(dim)
-    for i in range(dim):
-        bounds.setLow(i, float(lower[i]))
-        bounds.setHigh(i, float(upper[i]))
-    space.setBounds(bounds)
-    si = ob.SpaceInformation(space)
+        ss = og.SimpleSetup(si)
+        s_state = si.allocState()
+        g_state = si.allocState()
+        for i in range(dim):
+            s_state[i] = float(start[i])
+            g_state[i] = float(goal[i])
+        ss.setStartAndGoalStates(s_state, g_state)
+        ompl_planner = getattr(og, PLANNERS[planner])(si)
+        if planner_range is not None and hasattr(ompl_planner, "setRange"):
+            ompl_planner.setRange(float(planner_range))
+        ss.setPlanner(ompl_planner)
 
-    callback_error: list[BaseException] = []
+        objective = ob.PathLengthOptimizationObjective(si)
+        if not use_full_time:
+            # Any finite cost satisfies an infinite threshold: optimising planners stop at their
+            # first exact path instead of refining it until the time limit.
+            objective.setCostThreshold(ob.Cost(float("inf")))
+        ss.setOptimizationObjective(objective)
+        ss.setup()
 
-    def _valid(state) -> bool:
+        t0 = time.perf_counter()
+        status = ss.solve(float(time_limit))
+        plan_s = time.perf_counter() - t0
         if callback_error:
-            return False
-        try:
-            return bool(state_valid(state[0:dim]))
-        except BaseException as exc:  # re-raised after solve; OMPL cannot carry it
-            callback_error.append(exc)
-            return False
+            raise callback_error[0]
+        exact = bool(status) and ss.haveExactSolutionPath()
+        if not exact:
+            elapsed = time.perf_counter() - t0
+            return OmplOutcome(
+                False,
+                f"{PLANNERS[planner]} found no exact path in {plan_s:.3f} s (limit {time_limit:g} s; OMPL: {status})",
+                np.zeros((0, dim)),
+                elapsed,
+            )
 
-    si.setStateValidityChecker(_valid)
-    validator = None
-    if segment_valid is not None:
-
-        def _segment(a, b) -> bool:
-            if callback_error:
-                return False
-            try:
-                return bool(segment_valid(a, b))
-            except BaseException as exc:
-                callback_error.append(exc)
-                return False
-
-        validator = _motion_validator_class(ob)(si, _segment, dim)
-        si.setMotionValidator(validator)
-    elif resolution is not None:
-        extent = space.getMaximumExtent()
-        si.setStateValidityCheckingResolution(min(1.0, max(resolution / extent, 1e-6)))
-    si.setup()
-
-    ss = og.SimpleSetup(si)
-    s_state = si.allocState()
-    g_state = si.allocState()
-    for i in range(dim):
-        s_state[i] = float(start[i])
-        g_state[i] = float(goal[i])
-    ss.setStartAndGoalStates(s_state, g_state)
-    ompl_planner = getattr(og, PLANNERS[planner])(si)
-    if planner_range is not None and hasattr(ompl_planner, "setRange"):
-        ompl_planner.setRange(float(planner_range))
-    ss.setPlanner(ompl_planner)
-
-    objective = ob.PathLengthOptimizationObjective(si)
-    if not use_full_time:
-        # Any finite cost satisfies an infinite threshold: optimising planners stop at their
-        # first exact path instead of refining it until the time limit.
-        objective.setCostThreshold(ob.Cost(float("inf")))
-    ss.setOptimizationObjective(objective)
-    ss.setup()
-
-    t0 = time.perf_counter()
-    status = ss.solve(float(time_limit))
-    plan_s = time.perf_counter() - t0
-    if callback_error:
-        raise callback_error[0]
-    exact = bool(status) and ss.haveExactSolutionPath()
-    if not exact:
+        solution = ss.getSolutionPath()
+        raw_solution = og.PathGeometric(solution)
+        raw = _path_array(solution, dim)
+        simplified = simplify_time > 0.0 and len(raw) > 2
+        if simplified:
+            _simplify(og, si, solution, time.perf_counter() + simplify_time)
+        path = _path_array(solution, dim)
+        ok = _path_ok(path, segment_valid, solution)
+        if not ok and simplified and _path_ok(raw, segment_valid, raw_solution):
+            _LOG.warning("simplified path failed the final check; returning the raw planner path")
+            path, ok = raw, True
+        if callback_error:
+            raise callback_error[0]
+        if not ok:
+            return OmplOutcome(
+                False,
+                f"{PLANNERS[planner]} returned a path that fails the final motion check",
+                np.zeros((0, dim)),
+                time.perf_counter() - t0,
+            )
         elapsed = time.perf_counter() - t0
-        return OmplOutcome(
-            False,
-            f"{PLANNERS[planner]} found no exact path in {plan_s:.3f} s (limit {time_limit:g} s; OMPL: {status})",
-            np.zeros((0, dim)),
-            elapsed,
-        )
-
-    solution = ss.getSolutionPath()
-    raw_solution = og.PathGeometric(solution)
-    raw = _path_array(solution, dim)
-    simplified = simplify_time > 0.0 and len(raw) > 2
-    if simplified:
-        _simplify(og, si, solution, time.perf_counter() + simplify_time)
-    path = _path_array(solution, dim)
-    ok = _path_ok(path, segment_valid, solution)
-    if not ok and simplified and _path_ok(raw, segment_valid, raw_solution):
-        _LOG.warning("simplified path failed the final check; returning the raw planner path")
-        path, ok = raw, True
-    if callback_error:
-        raise callback_error[0]
-    if not ok:
-        return OmplOutcome(
-            False,
-            f"{PLANNERS[planner]} returned a path that fails the final motion check",
-            np.zeros((0, dim)),
-            time.perf_counter() - t0,
-        )
-    elapsed = time.perf_counter() - t0
-    # Make the end points exact (OMPL copies them, but keep float round-off out of callers' way).
-    path = path.copy()
-    path[0], path[-1] = start, goal
-    return OmplOutcome(True, f"{PLANNERS[planner]} found a path in {plan_s:.3f} s", path, elapsed)
+        # Make the end points exact (OMPL copies them, but keep float round-off out of callers' way).
+        path = path.copy()
+        path[0], path[-1] = start, goal
+        return OmplOutcome(True, f"{PLANNERS[planner]} found a path in {plan_s:.3f} s", path, elapsed)
 
 
 _SIMPLIFY_ROUNDS = 5

@@ -81,20 +81,8 @@ class SegmentChecker:
         c1, r1 = int(u1), int(v1)
         if c == c1 and r == r1:
             return True
-        du, dv = u1 - u0, v1 - v0
-        inf = math.inf
-        if du > 0.0:
-            sc, t_c, dt_c = 1, (c + 1 - u0) / du, 1.0 / du
-        elif du < 0.0:
-            sc, t_c, dt_c = -1, (u0 - c) / -du, -1.0 / du
-        else:
-            sc, t_c, dt_c = 0, inf, inf
-        if dv > 0.0:
-            sr, t_r, dt_r = 1, (r + 1 - v0) / dv, 1.0 / dv
-        elif dv < 0.0:
-            sr, t_r, dt_r = -1, (v0 - r) / -dv, -1.0 / dv
-        else:
-            sr, t_r, dt_r = 0, inf, inf
+        sc, t_c, dt_c = _axis_walk(u0, u1 - u0, c)
+        sr, t_r, dt_r = _axis_walk(v0, v1 - v0, r)
         flat, w = self._flat, self._w
         # Every step moves towards the end cell, so the walk stays inside the bounding box of
         # the two end cells (inside the grid) and ends after at most |dc| + |dr| steps.
@@ -160,3 +148,14 @@ def path_blocked_segments(grid: OccupancyGrid, path_xy, *, unknown_is_free: bool
     if len(path) == 1:
         return np.array([not checker.point_free(*path[0])])
     return np.array([not checker.segment_free(*p, *q) for p, q in zip(path[:-1], path[1:])], dtype=bool)
+
+
+def _axis_walk(start: float, delta: float, cell: int) -> tuple[int, float, float]:
+    """Along one grid axis of a segment ``start -> start + delta`` that begins in ``cell``: the
+    step (+1, -1 or 0), the segment parameter of the first cell boundary crossed, and the
+    parameter increment between boundaries (``inf`` when the segment does not move along it)."""
+    if delta > 0.0:
+        return 1, (cell + 1 - start) / delta, 1.0 / delta
+    if delta < 0.0:
+        return -1, (start - cell) / -delta, -1.0 / delta
+    return 0, math.inf, math.inf

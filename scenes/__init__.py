@@ -1,1 +1,3 @@
-"""scenes."""
+"""Shipped scene and episode data (``household/``, ``tabletop/``) and the scripts that
+regenerate them from the seeded generators in :mod:`sim_envs.scenes`.
+"""

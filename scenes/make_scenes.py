@@ -43,7 +43,7 @@ def render_overview(scene, width: int = 640, height: int = 480, *, wall_height: 
     """
     import numpy as np
 
-    from sim_envs.mujoco.camera import MujocoRGBDCamera
+    from sim_envs.mujoco.scan import render_views
     from sim_envs.mujoco.scene import build_mujoco
 
     if not scene.rooms:
@@ -51,7 +51,6 @@ def render_overview(scene, width: int = 640, height: int = 480, *, wall_height: 
     cut = dataclasses.replace(scene, walls=tuple(dataclasses.replace(w, height=min(w.height, wall_height)) for w in scene.walls))
     sim = build_mujoco(cut)
     fovy = 40.0
-    cam = MujocoRGBDCamera(sim.model, sim.data, width, height, fovy_deg=fovy)
     lo = np.min([r.floor[0] for r in scene.rooms], axis=0)
     hi = np.max([r.floor[1] for r in scene.rooms], axis=0)
     c, span = (lo + hi) / 2, hi - lo
@@ -59,10 +58,8 @@ def render_overview(scene, width: int = 640, height: int = 480, *, wall_height: 
     half_h = math.atan(math.tan(half_v) * width / height)
     dist = max(0.6 * span[0] / math.tan(half_h), 0.8 * span[1] / math.tan(half_v))
     el = math.radians(elevation_deg)
-    cam.set_pose((c[0], c[1] - dist * math.cos(el), dist * math.sin(el)), (c[0], c[1] + 0.3, 0.0))
-    rgb = cam.render(segmentation=False).rgb
-    cam.close()
-    return rgb
+    pose = ((c[0], c[1] - dist * math.cos(el), dist * math.sin(el)), (c[0], c[1] + 0.3, 0.0))
+    return render_views(sim, [pose], width, height, fovy_deg=fovy, segmentation=False)[0].rgb
 
 
 def main(argv: list[str] | None = None) -> None:

@@ -1,6 +1,15 @@
 """Gymnasium environments over simulated scenes (MuJoCo, PyBullet).
 
 Every environment is registered here, once, with a versioned id and a string entry point.
+
+* :mod:`sim_envs.scenes` - scene and episode formats, generators, floor plans, scene graphs;
+* :mod:`sim_envs.assets` - procedural objects and furniture, pybullet_data meshes, LIBERO;
+* :mod:`sim_envs.mujoco` and :mod:`sim_envs.pybullet` - the two simulator backends;
+* :mod:`sim_envs.envs` - the Gymnasium environments and their success functions;
+* :mod:`sim_envs.cameras` - OpenGL-style camera converters into the OpenCV convention.
+
+May import: :mod:`planners` and :mod:`conceptfusion`'s base modules (frames, cameras, errors,
+names, io_utils); never an agent, a map or the harness.
 """
 
 from gymnasium.envs.registration import register, registry

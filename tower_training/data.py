@@ -310,8 +310,9 @@ def build_crop_data(
     """Crops of many labelled views.
 
     Args:
-        views: objects with ``rgb``, ``depth``, ``segmentation``, ``K``, ``scene_seed`` and
-            ``object_names`` (as :class:`tower_training.views.TabletopView`).
+        views: :class:`tower_training.views.TabletopView` (or objects with a ``frame``
+            :class:`~conceptfusion.frames.RGBDFrame` with ``segmentation``, a ``scene_seed``
+            and ``object_names``).
         classes: the label vocabulary; objects whose name is not a class get no crop. The
             background and scene crops are made only when :data:`BACKGROUND_CLASS` /
             :data:`SCENE_CLASS` are in it.
@@ -328,8 +329,9 @@ def build_crop_data(
     images, labels, sources, seeds, view_ids = [], [], [], [], []
     for v, view in enumerate(views):
         obj_labels = [index.get(n, -1) for n in view.object_names]
-        masks = proposer.propose(view.rgb, view.depth, view.K) if proposer is not None else None
-        c, lab, src = crops_from_view(view.rgb, view.segmentation, obj_labels, rng, proposal_masks_rhw=masks,
+        f = view.frame
+        masks = proposer.propose(f.rgb, f.depth, f.K) if proposer is not None else None
+        c, lab, src = crops_from_view(f.rgb, f.segmentation, obj_labels, rng, proposal_masks_rhw=masks,
                                       background_label=bg, scene_label=sc, config=config)
         images += c
         labels += lab

@@ -15,8 +15,8 @@ own. The texts are what a user would type, not the training targets:
   background phrase wins.
 
 It also calibrates the tower's **score floor** (:func:`calibrate_score_floor`): the median
-cosine score the best region of a map query must reach for an agent's
-:class:`~agents.concept_map.ConceptMapper` to report the object found. Run
+cosine score the best region of a map query must reach for an agent's concept mapper
+(``agents.concept_map.ConceptMapper``) to report the object found. Run
 ``python -m tower_training.evaluate --calibrate-floor`` to measure it on shipped tabletop
 scenes and write it into the shipped ``tower.json`` (``metrics.score_floor``).
 """
@@ -174,23 +174,19 @@ def _shipped_tabletop_vocabulary() -> list[str]:
 def orbit_scan(scene, frames: int, width: int, height: int):
     """The orbit scan of a scene (as :func:`harness.maps.scan.scan_scene`): observations and
     the number of pixels seen of each object."""
-    from sim_envs.mujoco.camera import MujocoRGBDCamera
+    from sim_envs.mujoco.scan import scan_views
     from sim_envs.mujoco.scene import build_mujoco
-    from sim_envs.envs.scene_scan import scan_trajectory
 
-    sim = build_mujoco(scene)
-    cam = MujocoRGBDCamera(sim.model, sim.data, width, height, geom_object=sim.geom_object)
     obs, seen = [], np.zeros(len(scene.objects), np.int64)
-    try:
-        for eye, target in scan_trajectory(scene, frames):
-            cam.set_pose(eye, target)
-            f = cam.render()
-            obs.append({"rgb": f.rgb.copy(), "depth": f.depth.copy(), "K": f.K.copy(), "cam_to_world": f.cam_to_world.copy()})
-            ids, counts = np.unique(f.segmentation[f.segmentation >= 0], return_counts=True)
-            seen[ids] += counts
-    finally:
-        cam.close()
+    for f in scan_views(build_mujoco(scene), frames, width, height):
+        obs.append(f.observation())
+        ids, counts = np.unique(f.segmentation[f.segmentation >= 0], return_counts=True)
+        seen[ids] += counts
     return obs, seen
+
+
+_MAP_MAX_DEPTH = 6.0
+"""Depth (m) a map fuses, as the agents' ``MapperConfig.max_depth``."""
 
 
 def _best_region_score(res) -> float:
@@ -202,12 +198,18 @@ def _best_region_score(res) -> float:
 
 
 def map_query_scores(
-    scene_id: str, encoder, proposer, vocabulary: Sequence[str], config: FloorConfig = FloorConfig()
+    scene_id: str, featurizer, vocabulary: Sequence[str], config: FloorConfig = FloorConfig()
 ) -> dict:
     """Scan one shipped tabletop scene, fuse a map, and score every name of ``vocabulary``.
 
-    The map is built as :func:`agents.builtin.make_mapper` builds it, but without a floor
-    (``min_score=None``), so the returned score is the one the floor is compared with.
+    The map is built as an agent's mapper builds it (``agents.builtin.make_mapper``: the
+    featurizer's features, depth up to 6 m, :func:`~conceptfusion.map.query.locate` with its
+    default thresholds), but without a floor, so the returned score is the one the floor is
+    compared with.
+
+    Args:
+        featurizer: the perception (:func:`conceptfusion.perception.featurizer.make_featurizer`
+            or a :class:`~conceptfusion.perception.featurizer.PerceivedFeaturizer`).
 
     Returns:
         ``{"scene", "present": {name: score}, "absent": {name: score}, "unseen": [names]}``:
@@ -216,16 +218,24 @@ def map_query_scores(
         (``unseen``, not scored). A score is ``-inf`` when the query is not found even without
         a floor.
     """
-    from agents.concept_map import ConceptMapper, MapperConfig
+    from conceptfusion.frames import RGBDFrame
+    from conceptfusion.map.fusion import PointFusionMap
+    from conceptfusion.map.query import NEGATIVE_PHRASES, locate
     from sim_envs.scenes.episodes import SCENES_ROOT
     from sim_envs.scenes.format import load_scene
 
     scene = load_scene(SCENES_ROOT / "tabletop" / f"{scene_id}.json")
     obs, seen = orbit_scan(scene, config.frames, config.width, config.height)
-    mapper = ConceptMapper(encoder, proposer, MapperConfig(min_score=None))
-    mapper.reset()
+    featurizer.reset(None)
+    fmap = PointFusionMap(featurizer.dim, max_depth=_MAP_MAX_DEPTH)
     for o in obs:
-        mapper.integrate(o)
+        frame = RGBDFrame.from_observation(o)
+        fmap.integrate(frame.rgb, frame.depth, frame.K, frame.cam_to_world, featurizer.features(frame))
+    negatives = np.asarray(featurizer.encode_text(list(NEGATIVE_PHRASES)), np.float32)
+
+    def score(name: str) -> float:
+        return _best_region_score(locate(fmap, np.asarray(featurizer.encode_text([name])[0], np.float32), negatives))
+
     pixels: dict[str, int] = {}
     for obj, n in zip(scene.objects, seen):
         pixels[obj.name] = pixels.get(obj.name, 0) + int(n)
@@ -234,8 +244,8 @@ def map_query_scores(
     absent = sorted(set(vocabulary) - set(pixels))
     return {
         "scene": scene_id,
-        "present": {n: _best_region_score(mapper.locate(n)) for n in present},
-        "absent": {n: _best_region_score(mapper.locate(n)) for n in absent},
+        "present": {n: score(n) for n in present},
+        "absent": {n: score(n) for n in absent},
         "unseen": unseen,
     }
 
@@ -289,18 +299,17 @@ def calibrate_score_floor(config: FloorConfig = FloorConfig(), *, encoder=None, 
     """
     from dataclasses import asdict
 
-    from conceptfusion.perception.registry import make_encoder
+    from conceptfusion.perception.featurizer import PerceivedFeaturizer, make_featurizer
     from conceptfusion.perception.masks.registry import make_proposer
 
-    enc = make_encoder("embedded") if encoder is None else encoder
-    proposer = make_proposer("rgbd")
+    featurizer = make_featurizer("embedded") if encoder is None else PerceivedFeaturizer(encoder, make_proposer("rgbd"))
     vocab = _shipped_tabletop_vocabulary()
     per_split: dict[str, list[dict]] = {}
     for split, scenes in (("calibration", config.calibration_scenes), ("validation", config.validation_scenes)):
         per_split[split] = []
         for sid in scenes:
             t0 = time.perf_counter()
-            r = map_query_scores(sid, enc, proposer, vocab, config)
+            r = map_query_scores(sid, featurizer, vocab, config)
             per_split[split].append(r)
             log(f"{split} {sid}: {len(r['present'])} present, {len(r['absent'])} absent names "
                 f"({time.perf_counter() - t0:.1f} s)")

@@ -13,12 +13,14 @@ Randomness: a ``np.random.Generator`` passed in; the scenes follow from their se
 from __future__ import annotations
 
 import math
+from contextlib import closing
 from dataclasses import dataclass
 from typing import Iterator, Sequence
 
 import numpy as np
 
-from sim_envs.mujoco.camera import MujocoRGBDCamera
+from conceptfusion.frames import RGBDFrame
+from sim_envs.mujoco.scan import iter_views
 from sim_envs.mujoco.scene import build_mujoco
 from sim_envs.scenes.gen_tabletop import generate_tabletop
 
@@ -55,23 +57,31 @@ class ViewConfig:
 
 @dataclass(frozen=True)
 class TabletopView:
-    """One rendered view with its labels.
+    """One rendered view of a generated tabletop scene, with the names its labels index."""
 
-    Shape:
-        ``rgb`` (H, W, 3) uint8; ``depth`` (H, W) float32 metres (``inf``: nothing hit);
-        ``segmentation`` (H, W) int32 index into ``object_names`` (-1: table, floor, line);
-        ``K`` (3, 3); ``cam_to_world`` (4, 4) OpenCV convention.
-    """
-
-    rgb: np.ndarray
-    depth: np.ndarray
-    segmentation: np.ndarray
-    K: np.ndarray
-    cam_to_world: np.ndarray
+    frame: RGBDFrame
+    """The posed frame; its ``segmentation`` (H, W) int32 indexes ``object_names`` (-1: table,
+    floor, line)."""
     scene_seed: int
     """Seed of the generated scene."""
     object_names: tuple[str, ...]
     """Name of each object ("red mug"), by segmentation index."""
+
+
+def _random_poses(scene, ms, views_per_scene: int, rng: np.random.Generator, config: ViewConfig) -> Iterator[tuple]:
+    """Random (eye, target) pairs around the table; before yielding each, set the lights' random
+    brightness for that view (the randomness is drawn view by view, when the view is rendered)."""
+    base_light = ms.model.light_diffuse.copy()
+    cx, cy, _ = scene.table.center
+    top = scene.table.top_z
+    for _ in range(views_per_scene):
+        az = rng.uniform(-math.pi, math.pi)
+        dist = rng.uniform(*config.distance_m)
+        eye = (cx + dist * math.cos(az), cy + dist * math.sin(az), top + rng.uniform(*config.height_m))
+        j = config.target_jitter_m
+        target = (cx + rng.uniform(-j, j), cy + rng.uniform(-j, j), top)
+        ms.model.light_diffuse[:] = base_light * rng.uniform(*config.light_gain)
+        yield eye, target
 
 
 def random_tabletop_views(
@@ -79,7 +89,9 @@ def random_tabletop_views(
 ) -> Iterator[TabletopView]:
     """Render ``views_per_scene`` random views of each scene ``generate_tabletop(seed)``.
 
-    One MuJoCo model and one camera per scene, released before the next scene.
+    One MuJoCo model and one camera per scene (:func:`sim_envs.mujoco.scan.iter_views`),
+    released before the next scene. Each view's randomness is drawn from ``rng`` when that view
+    is asked for, so a consumer that draws from the same ``rng`` between views interleaves with it.
     """
     if views_per_scene < 1:
         raise ValueError(f"views_per_scene: expected at least 1, got {views_per_scene}")
@@ -88,22 +100,8 @@ def random_tabletop_views(
     for seed in seeds:
         scene = generate_tabletop(int(seed))
         ms = build_mujoco(scene)
-        base_light = ms.model.light_diffuse.copy()
-        cam = MujocoRGBDCamera(ms.model, ms.data, config.width, config.height, fovy_deg=config.fovy_deg,
-                               geom_object=ms.geom_object)
         names = tuple(o.name for o in scene.objects)
-        cx, cy, _ = scene.table.center
-        top = scene.table.top_z
-        try:
-            for _ in range(views_per_scene):
-                az = rng.uniform(-math.pi, math.pi)
-                dist = rng.uniform(*config.distance_m)
-                eye = (cx + dist * math.cos(az), cy + dist * math.sin(az), top + rng.uniform(*config.height_m))
-                j = config.target_jitter_m
-                target = (cx + rng.uniform(-j, j), cy + rng.uniform(-j, j), top)
-                ms.model.light_diffuse[:] = base_light * rng.uniform(*config.light_gain)
-                cam.set_pose(eye, target)
-                f = cam.render()
-                yield TabletopView(f.rgb, f.depth, f.segmentation, f.K, f.cam_to_world, int(seed), names)
-        finally:
-            cam.close()
+        poses = _random_poses(scene, ms, views_per_scene, rng, config)
+        with closing(iter_views(ms, poses, config.width, config.height, fovy_deg=config.fovy_deg)) as frames:
+            for f in frames:
+                yield TabletopView(frame=f, scene_seed=int(seed), object_names=names)

@@ -15,7 +15,6 @@ The function names are the paper's eight (:data:`conceptfusion.spatial.comparato
 
 from __future__ import annotations
 
-import difflib
 from typing import Callable
 
 from agents.spatial.grammar import PatternParser, normalise_question, parse_question
@@ -29,6 +28,7 @@ from agents.spatial.signature import (
     parse_signature,
     parsed,
 )
+from conceptfusion.names import unknown_name_error
 
 __all__ = [
     "SpatialQuestionParser",
@@ -75,7 +75,5 @@ def make_parser(name: str = "pattern", **kwargs) -> SpatialQuestionParser:
         raise TypeError(f"name: expected a str, got {type(name).__name__}")
     factory = PARSERS.get(name)
     if factory is None:
-        close = difflib.get_close_matches(name, list(PARSERS), n=2, cutoff=0.4)
-        hint = f"; did you mean {', '.join(close)}?" if close else ""
-        raise ValueError(f"unknown spatial parser {name!r}{hint} (valid: {', '.join(PARSERS)})")
+        raise unknown_name_error("spatial parser", name, PARSERS, n=2, listing=f"valid: {', '.join(PARSERS)}")
     return factory(**kwargs)

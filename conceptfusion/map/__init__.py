@@ -1,1 +1,11 @@
-"""conceptfusion.map."""
+"""The map: PointFusion with concept vectors, queries, regions, persistence.
+
+* :mod:`~conceptfusion.map.fusion` - :class:`PointFusionMap`, projective association and
+  confidence-weighted running means (eqs. 1-2), compiled loops in ``_kernels``;
+* :mod:`~conceptfusion.map.feature_store` - per-point concept vectors as mixtures of a shared bank;
+* :mod:`~conceptfusion.map.query` - scores, relative thresholds, relevancy, ``locate``;
+* :mod:`~conceptfusion.map.regions` - connected 3D regions a query selected;
+* :mod:`~conceptfusion.map.persistence` - versioned atomic ``.npz`` files and PLY export.
+
+May import: :mod:`conceptfusion` base modules and :mod:`conceptfusion.perception`'s data types.
+"""

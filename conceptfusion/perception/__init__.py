@@ -1,1 +1,12 @@
-"""conceptfusion.perception."""
+"""Perception: from an RGB-D frame to pixel-aligned concept features.
+
+* encoders (:mod:`~.encoders` protocol, :mod:`~.registry` by spec string, the offline MiniLM
+  :mod:`~.text_tower`, the shipped embedded :mod:`~.image_tower`, CLIP via :mod:`~.clip_hf` and
+  :mod:`~.clip_onnx`, :mod:`~.audio` and :mod:`~.speech` for spoken queries);
+* :mod:`~.masks` - class-agnostic mask proposers (RGB-D graph segmentation, optional SAM);
+* :mod:`~.features` and :mod:`~.pipeline` - the paper's eqs. 3-6, palette form;
+* :mod:`~.oracle` - privileged features from ground-truth segmentation;
+* :mod:`~.featurizer` - the one perception object a map is built with (perceived or oracle).
+
+May import: :mod:`conceptfusion` base modules; nothing of the simulator, agents or harness.
+"""

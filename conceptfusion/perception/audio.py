@@ -34,6 +34,7 @@ from typing import Protocol, Sequence, runtime_checkable
 import numpy as np
 
 from conceptfusion.errors import CheckpointError, DtypeError, MissingDependencyError, ShapeError
+from conceptfusion.perception.encoders import unit_rows
 
 __all__ = ["AudioEncoder", "check_waveforms", "OnnxAudioEncoder", "export_audio_onnx", "AUDIO_MANIFEST"]
 
@@ -210,7 +211,7 @@ class OnnxAudioEncoder:
             if res.shape != (len(rows), self._dim) or not np.all(np.isfinite(res)):
                 raise RuntimeError(f"{self.folder / 'audio.onnx'}: returned {res.shape} with non-finite values or the wrong size")
             out[rows] = res
-        return (out / np.maximum(np.linalg.norm(out, axis=1, keepdims=True), 1e-12)).astype(np.float32)
+        return unit_rows(out)
 
 
 def export_audio_onnx(

@@ -34,7 +34,7 @@ from typing import Sequence
 
 import numpy as np
 
-from conceptfusion.perception.encoders import check_images, check_texts
+from conceptfusion.perception.encoders import check_images, check_texts, embed_in_batches, unit_rows
 from conceptfusion.errors import CheckpointError, MissingDependencyError
 
 __all__ = ["ClipPreprocess", "clip_preprocess", "read_preprocess_config", "HFClipConfig", "HFClipEncoder", "SUPPORTED_MODEL_TYPES"]
@@ -299,11 +299,12 @@ class HFClipEncoder:
                 f"{len(missing)} missing or mismatched (first: {missing[:3]})"
             )
         try:
-            self._tokenizer = transformers.AutoTokenizer.from_pretrained(ref, local_files_only=local)
+            tokenizer = transformers.AutoTokenizer.from_pretrained(ref, local_files_only=local)
         except Exception as exc:
             raise CheckpointError(
                 f"{where}: could not load the tokenizer; expected tokenizer.json or vocab.json + merges.txt: {exc}"
             ) from exc
+        self._tokenizer = tokenizer
         self._model = model.eval().to(config.device)
         self._torch = torch
         vision = model_config.vision_config
@@ -326,6 +327,16 @@ class HFClipEncoder:
         """Token limit applied to texts."""
         return self._max_length
 
+    @property
+    def model(self):
+        """The ``transformers`` model (eval mode, on ``config.device``)."""
+        return self._model
+
+    @property
+    def tokenizer(self):
+        """The ``transformers`` tokenizer of the checkpoint."""
+        return self._tokenizer
+
     def tokenize(self, texts: Sequence[str]) -> dict[str, np.ndarray]:
         """Token ids and attention mask as the model sees them.
 
@@ -342,8 +353,7 @@ class HFClipEncoder:
         with torch.inference_mode():
             out = fn(**{k: torch.from_numpy(v).to(self.config.device) for k, v in inputs.items()})
         feats = out if isinstance(out, torch.Tensor) else out.pooler_output
-        feats = feats.float().cpu().numpy().astype(np.float64)
-        return (feats / np.maximum(np.linalg.norm(feats, axis=1, keepdims=True), 1e-12)).astype(np.float32)
+        return unit_rows(feats.float().cpu().numpy())
 
     def encode_image(self, images: Sequence[np.ndarray]) -> np.ndarray:
         """Embed RGB images.
@@ -352,11 +362,8 @@ class HFClipEncoder:
             n images (h_i, w_i, 3) uint8 -> (n, d) float32, unit rows.
         """
         x = clip_preprocess(images, self.preprocess)
-        out = np.empty((len(x), self._dim), np.float32)
-        b = self.config.batch_size
-        for s in range(0, len(x), b):
-            out[s : s + b] = self._run(self._model.get_image_features, pixel_values=x[s : s + b])
-        return out
+        return embed_in_batches(x, self.config.batch_size, self._dim,
+                                lambda batch: self._run(self._model.get_image_features, pixel_values=batch))
 
     def encode_text(self, texts: Sequence[str]) -> np.ndarray:
         """Embed non-empty strings.
@@ -364,12 +371,8 @@ class HFClipEncoder:
         Shape:
             n strings -> (n, d) float32, unit rows.
         """
-        txts = check_texts(texts)
-        out = np.empty((len(txts), self._dim), np.float32)
-        b = self.config.batch_size
-        for s in range(0, len(txts), b):
-            out[s : s + b] = self._run(self._model.get_text_features, **self.tokenize(txts[s : s + b]))
-        return out
+        return embed_in_batches(check_texts(texts), self.config.batch_size, self._dim,
+                                lambda batch: self._run(self._model.get_text_features, **self.tokenize(batch)))
 
 
 def _read_preprocessor_json(ref: str, local: bool) -> dict | None:

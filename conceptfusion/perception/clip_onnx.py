@@ -37,7 +37,7 @@ from typing import Sequence
 import numpy as np
 
 from conceptfusion.perception.clip_hf import ClipPreprocess, clip_preprocess
-from conceptfusion.perception.encoders import check_texts
+from conceptfusion.perception.encoders import check_texts, embed_in_batches, unit_rows
 from conceptfusion.errors import CheckpointError, MissingDependencyError
 
 __all__ = ["OnnxClipEncoder", "export_clip_to_onnx", "MANIFEST_NAME", "LAYOUT_FILES"]
@@ -184,11 +184,6 @@ class OnnxClipEncoder:
             mask[i, : len(e.ids)] = 1
         return {"input_ids": ids, "attention_mask": mask}
 
-    @staticmethod
-    def _normalise(x: np.ndarray) -> np.ndarray:
-        x = np.asarray(x, np.float64)
-        return (x / np.maximum(np.linalg.norm(x, axis=1, keepdims=True), 1e-12)).astype(np.float32)
-
     def encode_image(self, images: Sequence[np.ndarray]) -> np.ndarray:
         """Embed RGB images.
 
@@ -196,10 +191,8 @@ class OnnxClipEncoder:
             n images (h_i, w_i, 3) uint8 -> (n, d) float32, unit rows.
         """
         x = clip_preprocess(images, self.preprocess)
-        out = np.empty((len(x), self._dim), np.float32)
-        for s in range(0, len(x), self._batch):
-            out[s : s + self._batch] = self._normalise(self._image.run(None, {"pixel_values": x[s : s + self._batch]})[0])
-        return out
+        return embed_in_batches(x, self._batch, self._dim,
+                                lambda batch: unit_rows(self._image.run(None, {"pixel_values": batch})[0]))
 
     def encode_text(self, texts: Sequence[str]) -> np.ndarray:
         """Embed non-empty strings.
@@ -207,13 +200,11 @@ class OnnxClipEncoder:
         Shape:
             n strings -> (n, d) float32, unit rows.
         """
-        txts = check_texts(texts)
-        out = np.empty((len(txts), self._dim), np.float32)
-        for s in range(0, len(txts), self._batch):
-            feeds = self.tokenize(txts[s : s + self._batch])
-            res = self._text.run(None, {k: feeds[k] for k in self._text_inputs})[0]
-            out[s : s + self._batch] = self._normalise(res)
-        return out
+        return embed_in_batches(check_texts(texts), self._batch, self._dim, self._embed_text_batch)
+
+    def _embed_text_batch(self, texts: list[str]) -> np.ndarray:
+        feeds = self.tokenize(texts)
+        return unit_rows(self._text.run(None, {k: feeds[k] for k in self._text_inputs})[0])
 
 
 def export_clip_to_onnx(hf_model_dir: str | Path, out_dir: str | Path, *, opset: int = 17, verify: bool = True) -> Path:
@@ -237,10 +228,10 @@ def export_clip_to_onnx(hf_model_dir: str | Path, out_dir: str | Path, *, opset:
     except ImportError as exc:
         raise MissingDependencyError(f"exporting CLIP to ONNX needs torch and transformers: {_EXTRA}") from exc
     hf = HFClipEncoder(hf_model_dir)
-    backend = getattr(hf._tokenizer, "backend_tokenizer", None)
+    backend = getattr(hf.tokenizer, "backend_tokenizer", None)
     if backend is None:
         raise CheckpointError(f"{hf_model_dir}: expected a fast (tokenizers-backed) tokenizer to write tokenizer.json")
-    model = hf._model
+    model = hf.model
     if hasattr(model, "set_attn_implementation"):
         model.set_attn_implementation("eager")  # plain matmul attention exports to any opset
 
@@ -291,7 +282,7 @@ def export_clip_to_onnx(hf_model_dir: str | Path, out_dir: str | Path, *, opset:
     for name, data in graphs.items():
         atomic_write_bytes(out / name, data)
     atomic_write_text(out / "tokenizer.json", backend.to_str())
-    pad = hf._tokenizer.pad_token_id if hf._tokenizer.pad_token_id is not None else hf._tokenizer.eos_token_id
+    pad = hf.tokenizer.pad_token_id if hf.tokenizer.pad_token_id is not None else hf.tokenizer.eos_token_id
     manifest = {
         "format": _FORMAT,
         "version": _VERSION,

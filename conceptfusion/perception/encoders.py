@@ -9,13 +9,13 @@ from __future__ import annotations
 
 import hashlib
 import re
-from typing import Protocol, Sequence, runtime_checkable
+from typing import Callable, Protocol, Sequence, runtime_checkable
 
 import numpy as np
 
 from conceptfusion.errors import DtypeError, ShapeError
 
-__all__ = ["Encoder", "ColorNameEncoder", "check_images", "check_texts", "COLOR_NAMES"]
+__all__ = ["Encoder", "ColorNameEncoder", "check_images", "check_texts", "unit_rows", "embed_in_batches", "COLOR_NAMES"]
 
 
 @runtime_checkable
@@ -49,6 +49,28 @@ def check_images(images: Sequence[np.ndarray]) -> list[np.ndarray]:
         if img.ndim != 3 or img.shape[2] != 3 or img.shape[0] < 1 or img.shape[1] < 1:
             raise ShapeError(f"images[{i}]: expected shape (h, w, 3) with h, w >= 1, got {img.shape}")
         out.append(img)
+    return out
+
+
+def unit_rows(x_nd) -> np.ndarray:
+    """Each row scaled to unit length (computed in float64; all-zero rows stay zero), as float32.
+
+    Shape:
+        (n, d) -> (n, d) float32.
+    """
+    x = np.asarray(x_nd, np.float64)
+    return (x / np.maximum(np.linalg.norm(x, axis=1, keepdims=True), 1e-12)).astype(np.float32)
+
+
+def embed_in_batches(items: Sequence, batch_size: int, dim: int, embed: Callable[[Sequence], np.ndarray]) -> np.ndarray:
+    """``embed`` run on consecutive slices of at most ``batch_size`` items, its rows stacked.
+
+    Shape:
+        n items -> (n, dim) float32 (``embed``: m items -> (m, dim)).
+    """
+    out = np.empty((len(items), dim), np.float32)
+    for s in range(0, len(items), batch_size):
+        out[s : s + batch_size] = embed(items[s : s + batch_size])
     return out
 
 
@@ -116,8 +138,7 @@ class ColorNameEncoder:
         return self._dim
 
     def _to_space(self, coeffs_nk: np.ndarray) -> np.ndarray:
-        v = coeffs_nk @ self._basis[: coeffs_nk.shape[1]]
-        return (v / np.maximum(np.linalg.norm(v, axis=1, keepdims=True), 1e-12)).astype(np.float32)
+        return unit_rows(coeffs_nk @ self._basis[: coeffs_nk.shape[1]])
 
     def color_histogram(self, image_hw3: np.ndarray) -> np.ndarray:
         """Soft histogram of an image's pixels over the prototype colours, (K,) summing to 1."""

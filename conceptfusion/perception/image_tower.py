@@ -21,7 +21,7 @@ from typing import Sequence
 
 import numpy as np
 
-from conceptfusion.perception.encoders import check_images, check_texts
+from conceptfusion.perception.encoders import check_images, check_texts, embed_in_batches
 from conceptfusion.errors import MissingDependencyError
 
 __all__ = ["TowerConfig", "SHIPPED_TOWER_DIR", "preprocess", "build_tower", "export_tower_onnx", "EmbeddedEncoder"]
@@ -202,10 +202,7 @@ class EmbeddedEncoder:
 
     def encode_image(self, images: Sequence[np.ndarray]) -> np.ndarray:
         x = preprocess(images, self.config.input_size)
-        out = np.empty((len(x), self.dim), np.float32)
-        for s in range(0, len(x), self._batch):
-            out[s : s + self._batch] = self._session.run(None, {"images": x[s : s + self._batch]})[0]
-        return out
+        return embed_in_batches(x, self._batch, self.dim, lambda batch: self._session.run(None, {"images": batch})[0])
 
     def encode_text(self, texts: Sequence[str]) -> np.ndarray:
         return np.asarray(self._text.encode_text(check_texts(texts)), np.float32)

@@ -18,9 +18,10 @@ called, so importing this module is cheap.
 
 from __future__ import annotations
 
-import difflib
 import importlib.util
 from typing import Callable
+
+from conceptfusion.names import unknown_name_error
 
 __all__ = ["ENCODERS", "DEFAULT_ENCODER", "parse_encoder_spec", "make_encoder", "describe_encoders"]
 
@@ -110,12 +111,10 @@ def parse_encoder_spec(spec: str) -> tuple[str, str | None]:
     name, sep, arg = spec.strip().partition(":")
     name = name.strip().lower()
     if name not in ENCODERS:
-        valid = sorted(ENCODERS)
-        near = difflib.get_close_matches(name, valid, n=3, cutoff=0.5)
-        hint = f"; did you mean {', '.join(near)}?" if near else ""
+        listing = f"encoders: {', '.join(sorted(ENCODERS))}"
         if "/" in spec and not sep:
-            hint += f" (a model needs a prefix: hf:{spec.strip()} for Hugging Face, onnx:{spec.strip()} for an ONNX folder)"
-        raise ValueError(f"unknown encoder {name!r}: expected one of {', '.join(valid)}{hint}")
+            listing += f"; a model needs a prefix: hf:{spec.strip()} for Hugging Face, onnx:{spec.strip()} for an ONNX folder"
+        raise unknown_name_error("encoder", name, sorted(ENCODERS), cutoff=0.5, listing=listing)
     return name, (arg if sep else None)
 
 

@@ -28,7 +28,7 @@ from typing import Protocol, Sequence, runtime_checkable
 
 import numpy as np
 
-from conceptfusion.perception.encoders import check_texts
+from conceptfusion.perception.encoders import check_texts, unit_rows
 from conceptfusion.errors import MissingDependencyError
 
 __all__ = ["TextEncoder", "TextTowerConfig", "MiniLMTextEncoder", "MINILM_DIM", "PERCEPTION_EXTRA"]
@@ -189,7 +189,7 @@ class MiniLMTextEncoder:
         if emb.shape[1] != MINILM_DIM or not np.all(np.isfinite(emb)):
             raise RuntimeError(f"text tower returned {emb.shape} embeddings with non-finite values or the wrong size")
         self.texts_embedded += len(texts)
-        return (emb / np.maximum(np.linalg.norm(emb, axis=1, keepdims=True), 1e-12)).astype(np.float32)
+        return unit_rows(emb)
 
     def encode_text(self, texts: Sequence[str]) -> np.ndarray:
         """Embed non-empty strings.

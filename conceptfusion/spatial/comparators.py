@@ -30,7 +30,6 @@ Summary of the geometric definitions (each function's docstring has the details)
 
 from __future__ import annotations
 
-import difflib
 from dataclasses import dataclass
 from typing import Protocol
 
@@ -44,6 +43,7 @@ from conceptfusion.spatial.geometry import (
     robust_bounds,
 )
 from conceptfusion.map.regions import Region
+from conceptfusion.names import unknown_name_error
 
 __all__ = [
     "SpatialAnswer",
@@ -232,8 +232,8 @@ def closest_distance(
 
 def _lateral(
     relation: str,
-    region_a: Region,
-    region_b: Region,
+    region_a: Region | None,
+    region_b: Region | None,
     viewing_direction,
     viewer_position,
     center: str,
@@ -241,6 +241,10 @@ def _lateral(
     names: tuple[str, str],
     sign: float,
 ) -> SpatialAnswer:
+    """``isToTheLeft`` (``sign`` -1) or ``isToTheRight`` (+1) of a and b, checks included."""
+    if (miss := _missing(relation, region_a, region_b, names)) is not None:
+        return miss
+    min_offset = _check_nonneg("min_offset", min_offset)
     if (viewing_direction is None) == (viewer_position is None):
         raise ValueError(f"{relation}: give exactly one of viewing_direction or viewer_position")
     ca, cb = _center(region_a, center), _center(region_b, center)
@@ -299,12 +303,7 @@ def is_to_the_left(
     axis exceeds ``min_offset`` metres. Centres are per-axis medians by default. ``details``:
     ``"offset"`` (metres, positive towards the left).
     """
-    if (miss := _missing("isToTheLeft", region_a, region_b, names)) is not None:
-        return miss
-    return _lateral(
-        "isToTheLeft", region_a, region_b, viewing_direction, viewer_position, center,
-        _check_nonneg("min_offset", min_offset), names, -1.0,
-    )
+    return _lateral("isToTheLeft", region_a, region_b, viewing_direction, viewer_position, center, min_offset, names, -1.0)
 
 
 def is_to_the_right(
@@ -321,12 +320,7 @@ def is_to_the_right(
 
     ``details``: ``"offset"`` (metres, positive towards the right).
     """
-    if (miss := _missing("isToTheRight", region_a, region_b, names)) is not None:
-        return miss
-    return _lateral(
-        "isToTheRight", region_a, region_b, viewing_direction, viewer_position, center,
-        _check_nonneg("min_offset", min_offset), names, 1.0,
-    )
+    return _lateral("isToTheRight", region_a, region_b, viewing_direction, viewer_position, center, min_offset, names, 1.0)
 
 
 # ---------------------------------------------------------------------------------------------
@@ -336,15 +330,23 @@ def is_to_the_right(
 
 def _support(
     relation: str,
-    top: Region,
-    bottom: Region,
-    top_name: str,
-    bottom_name: str,
+    region_a: Region | None,
+    region_b: Region | None,
+    names: tuple[str, str],
     contact_tol: float,
     min_overlap: float,
     require_contact: bool,
     trim_pct: float,
+    *,
+    a_on_top: bool,
 ) -> SpatialAnswer:
+    """Does the top region rest on the bottom one (a on b when ``a_on_top``, else b on a)? Checks included."""
+    if (miss := _missing(relation, region_a, region_b, names)) is not None:
+        return miss
+    trim_pct = _check_trim(trim_pct)
+    top, bottom, top_name, bottom_name = (
+        (region_a, region_b, names[0], names[1]) if a_on_top else (region_b, region_a, names[1], names[0])
+    )
     tol = _check_nonneg("contact_tol", contact_tol)
     frac_min = float(min_overlap)
     if not 0.0 < frac_min <= 1.0:
@@ -390,12 +392,8 @@ def on_top_of(
 
     ``details``: ``"gap"`` = bottom(a) - top(b) in metres, ``"overlap"`` the fraction.
     """
-    if (miss := _missing("onTopOf", region_a, region_b, names)) is not None:
-        return miss
-    return _support(
-        "onTopOf", region_a, region_b, names[0], names[1], contact_tol, min_overlap,
-        bool(require_contact), _check_trim(trim_pct),
-    )
+    return _support("onTopOf", region_a, region_b, names, contact_tol, min_overlap, bool(require_contact), trim_pct,
+                    a_on_top=True)
 
 
 def under(
@@ -413,12 +411,8 @@ def under(
     Exactly :func:`on_top_of` with the roles swapped: ``under(a, b) == onTopOf(b, a)``.
     ``details``: ``"gap"`` = bottom(b) - top(a), ``"overlap"``.
     """
-    if (miss := _missing("under", region_a, region_b, names)) is not None:
-        return miss
-    return _support(
-        "under", region_b, region_a, names[1], names[0], contact_tol, min_overlap,
-        bool(require_contact), _check_trim(trim_pct),
-    )
+    return _support("under", region_a, region_b, names, contact_tol, min_overlap, bool(require_contact), trim_pct,
+                    a_on_top=False)
 
 
 # ---------------------------------------------------------------------------------------------
@@ -577,6 +571,5 @@ def get_comparator(name: str) -> Comparator:
     canonical = _BY_LOWER.get(name.strip().lower())
     if canonical is not None:
         return COMPARATORS[canonical]
-    close = difflib.get_close_matches(name.strip().lower(), list(_BY_LOWER), n=3, cutoff=0.5)
-    hint = f"; did you mean {', '.join(_BY_LOWER[c] for c in close)}?" if close else ""
-    raise ValueError(f"unknown spatial comparator {name!r}{hint} (valid: {', '.join(COMPARATOR_NAMES)})")
+    raise unknown_name_error("spatial comparator", name, COMPARATORS, cutoff=0.5, key=lambda n: n.strip().lower(),
+                             listing=f"valid: {', '.join(COMPARATOR_NAMES)}")

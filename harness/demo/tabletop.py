@@ -2,7 +2,8 @@
 
 A procedural tabletop scene (:func:`sim_envs.scenes.gen_tabletop.generate_tabletop`, a seed never
 used to train the embedded tower) is rendered along an orbit. Each frame's masks come
-from the RGB-D proposer, its features from the encoder (:func:`frame_features`), and the
+from the RGB-D proposer, its features from the encoder (a perceived
+:class:`~conceptfusion.perception.featurizer.FrameFeaturizer`), and the
 frames are fused into one map. The map is queried with the name of every object on the
 table and with one instance name that is absent (chosen among the colour x category names
 so that, where possible, neither its category nor its colour is on the table), which must
@@ -14,13 +15,13 @@ Ground truth for a query: the map points inside the object's rotated box (1 cm m
 from __future__ import annotations
 
 import time
+from contextlib import closing
 from pathlib import Path
 
 import numpy as np
 
 from conceptfusion.map.fusion import PointFusionMap
-from conceptfusion.perception.masks.registry import make_proposer
-from conceptfusion.perception.pipeline import frame_features
+from harness.demo.scoring import DemoConfig, demo_summary, score_queries
 
 __all__ = ["absent_name", "points_on_object", "run_tabletop_demo"]
 
@@ -54,41 +55,33 @@ def points_on_object(points_n3: np.ndarray, obj, *, tol: float = 0.01) -> np.nda
     return (np.abs(x) <= sx / 2 + tol) & (np.abs(y) <= sy / 2 + tol) & (p[:, 2] >= -tol) & (p[:, 2] <= sz + tol)
 
 
-def run_tabletop_demo(config, encoder, out_dir: Path | None = None) -> dict:
+def run_tabletop_demo(config: DemoConfig, featurizer, out_dir: Path | None = None) -> dict:
     """Build the map of ``generate_tabletop(config.scene_seed)``, query it, score it (see the module docstring).
 
-    ``config`` is a :class:`harness.demo.run.DemoConfig`; the outcomes are :class:`harness.demo.run.QueryOutcome`.
+    ``featurizer`` is the perception (:func:`conceptfusion.perception.featurizer.make_featurizer`
+    of the config's encoder and proposer).
+
+    ``config`` is a :class:`harness.demo.scoring.DemoConfig`; the outcomes are :class:`harness.demo.scoring.QueryOutcome`.
     """
-    from harness.demo.run import demo_summary, score_queries
     from sim_envs.assets.objects import ASSETS, COLORS
-    from sim_envs.mujoco.camera import MujocoRGBDCamera
+    from sim_envs.mujoco.scan import iter_views
     from sim_envs.mujoco.scene import build_mujoco
     from sim_envs.scenes.gen_tabletop import generate_tabletop
-    from sim_envs.envs.scene_scan import orbit_trajectory
+    from sim_envs.scenes.trajectories import orbit_trajectory
 
     scene = generate_tabletop(config.scene_seed)
     ms = build_mujoco(scene)
-    cam = MujocoRGBDCamera(ms.model, ms.data, config.width, config.height, fovy_deg=config.fovy_deg,
-                           geom_object=ms.geom_object)
-    proposer = make_proposer(config.proposer)
-    fmap = PointFusionMap(encoder.dim)
+    fmap = PointFusionMap(featurizer.dim)
     t_features = t_fuse = 0.0
-    try:
-        for eye, target in orbit_trajectory(scene, config.frames):
-            cam.set_pose(eye, target)
-            f = cam.render()
+    poses = orbit_trajectory(scene, config.frames)
+    with closing(iter_views(ms, poses, config.width, config.height, fovy_deg=config.fovy_deg)) as frames:
+        for f in frames:
             t0 = time.perf_counter()
-            if getattr(proposer, "privileged", False):
-                masks = proposer.propose(f.rgb, f.depth, f.K, segmentation_hw=f.segmentation)
-            else:
-                masks = proposer.propose(f.rgb, f.depth, f.K)
-            feats = frame_features(f.rgb, masks, encoder)
+            feats = featurizer.features(f)
             t1 = time.perf_counter()
             fmap.integrate(f.rgb, f.depth, f.K, f.cam_to_world, feats)
             t_fuse += time.perf_counter() - t1
             t_features += t1 - t0
-    finally:
-        cam.close()
     present = [(o.color, o.category) for o in scene.objects]
     absent = absent_name(present, list(COLORS), sorted({a.category for a in ASSETS.values()}))
     queries = sorted(o.name for o in scene.objects) + [absent]
@@ -98,4 +91,4 @@ def run_tabletop_demo(config, encoder, out_dir: Path | None = None) -> dict:
         obj = next((o for o in scene.objects if o.name == text), None)
         centre = None if obj is None else np.asarray(obj.position, float) + np.array([0.0, 0.0, obj.size[2] / 2])
         truths[text] = None if obj is None else (obj.name, centre, points_on_object(points, obj))
-    return demo_summary(scene.id, fmap, config.frames, t_features, t_fuse, score_queries(fmap, encoder, truths, out_dir))
+    return demo_summary(scene.id, fmap, config.frames, t_features, t_fuse, score_queries(fmap, featurizer.encoder, truths, out_dir))

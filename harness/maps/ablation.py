@@ -22,7 +22,9 @@ import time
 
 import numpy as np
 
-from harness.maps.scan import load_shipped_scene, point_labels, scan_scene
+from agents.builtin import make_mapper
+from conceptfusion.perception.featurizer import PerceptionSpec
+from harness.maps.scan import fuse_frames, point_labels, scan_tabletop
 
 __all__ = ["VARIANTS", "segmentation_scores", "run_ablation_scene", "ground_truth_classes"]
 
@@ -32,7 +34,8 @@ VARIANTS: dict[str, dict] = {
     "no-uniqueness": {"mode": "full", "uniqueness": False},
     "full": {"mode": "full"},
 }
-"""Variant name -> keyword arguments of :func:`conceptfusion.perception.pipeline.frame_features`."""
+"""Variant name -> the feature mode of its
+:class:`~conceptfusion.perception.featurizer.PerceptionSpec` (``mode``, ``uniqueness``)."""
 
 
 def segmentation_scores(pred_n: np.ndarray, true_n: np.ndarray, num_classes: int) -> dict:
@@ -84,41 +87,29 @@ def _classify(fmap, text_vectors_kd: np.ndarray) -> np.ndarray:
 
 
 def run_ablation_scene(
-    scene_id: str, variant: str, encoder, *, proposer: str = "rgbd", frames: int = 12, width: int = 160, height: int = 120,
+    scene_id: str, variant: str, encoder: str, *, proposer: str = "rgbd", frames: int = 12, width: int = 160, height: int = 120,
 ) -> tuple[dict, dict, dict]:
     """One scene, one variant; returns ``(metrics, extras, timings)``.
 
-    ``encoder`` is an encoder object (``encode_image``, ``encode_text``, ``dim``).
+    ``encoder`` is an encoder spec (``"embedded"``, ``"color"``, ...); the variant's featurizer
+    is built by :func:`agents.builtin.make_mapper` (the encoder is loaded once per process).
     """
-    from conceptfusion.map.fusion import PointFusionMap
-    from conceptfusion.perception.masks.registry import make_proposer
-    from conceptfusion.perception.pipeline import frame_features
-
     if variant not in VARIANTS:
         raise ValueError(f"ablation variant: expected one of {list(VARIANTS)}, got {variant!r}")
     t0 = time.perf_counter()
-    scene = load_shipped_scene(scene_id)
-    if scene.table is None:
-        raise ValueError(f"ablation suite: expected a tabletop scene, got {scene_id!r}")
-    scan = scan_scene(scene, frames=frames, width=width, height=height)
+    scan = scan_tabletop(scene_id, "ablation", frames=frames, width=width, height=height)
     t_scan = time.perf_counter() - t0
-    prop = make_proposer(proposer)
-    fmap = PointFusionMap(encoder.dim, max_depth=6.0)
-    for f in scan.frames:
-        if getattr(prop, "privileged", False):
-            masks = prop.propose(f.rgb, f.depth, f.K, segmentation_hw=f.labels)
-        else:
-            masks = prop.propose(f.rgb, f.depth, f.K)
-        fmap.integrate(f.rgb, f.depth, f.K, f.cam_to_world, frame_features(f.rgb, masks, encoder, **VARIANTS[variant]))
+    mapper = fuse_frames(make_mapper(PerceptionSpec.parse(encoder, proposer=proposer, **VARIANTS[variant])), scan)
+    fmap = mapper.map
     t_fuse = time.perf_counter() - t0 - t_scan
-    t = scene.table
+    t = scan.scene.table
     near = np.all(np.abs(fmap.points[:, :2] - np.asarray(t.center[:2])) <= np.asarray(t.size[:2]) / 2 + 0.3, axis=1)
     true, names = ground_truth_classes(fmap.points[near], scan)
-    pred = _classify(fmap, np.asarray(encoder.encode_text(names), np.float32))[near]
+    pred = _classify(fmap, np.asarray(mapper.featurizer.encode_text(names), np.float32))[near]
     metrics = segmentation_scores(pred, true, len(names))
     metrics.update({"coverage": float(fmap.has_feature[near].mean()), "map_points": int(near.sum()), "n_classes": int(len(np.unique(true)))})
     per_class = {names[c]: round(float((pred[true == c] == c).mean()), 4) for c in np.unique(true)}
     extras = {"per_class_acc": per_class, "proposer": proposer, "frames": frames, "image_size": [width, height],
-              "privileged": bool(getattr(prop, "privileged", False))}
+              "privileged": bool(mapper.privileged)}
     timings = {"scan_s": t_scan, "fuse_s": t_fuse, "score_s": time.perf_counter() - t0 - t_scan - t_fuse}
     return metrics, extras, timings

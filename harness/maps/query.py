@@ -28,7 +28,9 @@ from pathlib import Path
 
 import numpy as np
 
-from harness.maps.scan import SceneScan, fuse_frames, load_shipped_scene, point_labels, render_views, scan_scene, scene_mapper, shipped_scene_ids
+from agents.builtin import make_mapper
+from harness.maps.scan import SceneScan, fuse_frames, load_shipped_scene, point_labels, scan_tabletop, shipped_scene_ids
+from sim_envs.mujoco.scan import render_views
 
 __all__ = ["run_query_scene", "locate_vector", "iou", "MODALITIES", "IOU_LEVELS"]
 
@@ -80,17 +82,17 @@ def _novel_views(scan: SceneScan, width: int, height: int, n: int = 8) -> list:
     for k in range(n):
         a = 2 * math.pi * (k + 0.5) / n - math.pi / 2
         poses.append(((cx + 0.8 * math.cos(a), cy + 0.8 * math.sin(a), t.top_z + 0.45), target))
-    return render_views(scan, poses, width, height)
+    return render_views(scan.sim, poses, width, height, geom_labels=scan.geom_labels)
 
 
 def _image_query(encoder, views, label: int) -> np.ndarray | None:
     from conceptfusion.perception.features import mask_bboxes
 
-    areas = [int((v.labels == label).sum()) for v in views]
+    areas = [int((v.segmentation == label).sum()) for v in views]
     k = int(np.argmax(areas))
     if areas[k] < 20:
         return None
-    mask = views[k].labels == label
+    mask = views[k].segmentation == label
     r0, c0, r1, c1 = mask_bboxes(mask[None])[0]
     h, w = mask.shape
     crop = views[k].rgb[max(r0 - 2, 0): min(r1 + 2, h), max(c0 - 2, 0): min(c1 + 2, w)]
@@ -128,12 +130,9 @@ def run_query_scene(
     ``points`` (N, 3) and ``values`` (N,) (0 where a point has no concept vector).
     """
     t0 = time.perf_counter()
-    scene = load_shipped_scene(scene_id)
-    if scene.table is None:
-        raise ValueError(f"query suite: expected a tabletop scene, got {scene_id!r}")
-    scan = scan_scene(scene, frames=frames, width=width, height=height)
+    scan = scan_tabletop(scene_id, "query", frames=frames, width=width, height=height)
     t_scan = time.perf_counter() - t0
-    mapper = fuse_frames(scene_mapper(encoder, "rgbd"), scan)
+    mapper = fuse_frames(make_mapper(encoder, "rgbd"), scan)
     t_fuse = time.perf_counter() - t0 - t_scan
     fmap = mapper.map
     pts = fmap.points
@@ -145,8 +144,8 @@ def run_query_scene(
     ious_t = {m: [] for m in MODALITIES}
     found = {m: [] for m in MODALITIES}
     queries, skipped = [], 0
-    for i, obj in enumerate(scene.objects):
-        truth = np.isin(gt, [j for j, o in enumerate(scene.objects) if o.name == obj.name])
+    for i, obj in enumerate(scan.scene.objects):
+        truth = np.isin(gt, [j for j, o in enumerate(scan.scene.objects) if o.name == obj.name])
         if not truth.any():
             skipped += 1
             continue
@@ -180,7 +179,7 @@ def run_query_scene(
             entry[m] = {"iou": round(v, 4), "iou_thresh": round(vt, 4), "found": bool(res.found)}
         queries.append(entry)
     absent = []
-    for name in _absent_names(scene, seed):
+    for name in _absent_names(scan.scene, seed):
         absent.append({"name": name, "found": bool(mapper.locate(name).found)})
     metrics: dict = {}
     for m in MODALITIES:

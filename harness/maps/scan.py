@@ -11,40 +11,20 @@ these labels (privileged), so the oracle also knows furniture, the table and the
 
 from __future__ import annotations
 
-import functools
 from dataclasses import dataclass
 
 import numpy as np
 
+from conceptfusion.frames import RGBDFrame
 from sim_envs.scenes.episodes import SCENES_ROOT
 from sim_envs.scenes.format import Scene, load_scene
 
 __all__ = [
-    "SCENE_KINDS", "ScanFrame", "SceneScan", "shipped_scene_ids", "load_shipped_scene", "scan_scene",
-    "render_views", "scene_mapper", "fuse_frames", "point_labels",
+    "SCENE_KINDS", "SceneScan", "shipped_scene_ids", "load_shipped_scene", "scan_scene", "scan_tabletop",
+    "fuse_frames", "point_labels",
 ]
 
 SCENE_KINDS = ("tabletop", "household")
-
-
-@dataclass
-class ScanFrame:
-    """One posed RGB-D frame with its label image.
-
-    Shape:
-        ``rgb`` (H, W, 3) uint8, ``depth`` (H, W) float32 metres, ``K`` (3, 3),
-        ``cam_to_world`` (4, 4) OpenCV, ``labels`` (H, W) int32 (see the module docstring).
-    """
-
-    rgb: np.ndarray
-    depth: np.ndarray
-    K: np.ndarray
-    cam_to_world: np.ndarray
-    labels: np.ndarray
-
-    def observation(self) -> dict:
-        """The frame as a mapper observation (``rgb``, ``depth``, ``K``, ``cam_to_world``)."""
-        return {"rgb": self.rgb, "depth": self.depth, "K": self.K, "cam_to_world": self.cam_to_world}
 
 
 @dataclass
@@ -54,7 +34,8 @@ class SceneScan:
     scene: Scene
     sim: object
     """The :class:`~sim_envs.mujoco.scene.MujocoScene` (for extra views)."""
-    frames: list[ScanFrame]
+    frames: list[RGBDFrame]
+    """The scan's frames, each with its label image as ``segmentation`` (see the module docstring)."""
     label_names: dict[int, str]
     """Label id -> name (objects, furniture, ``"table"``, ``"floor"``)."""
     object_boxes: np.ndarray
@@ -108,66 +89,40 @@ def _geom_labels(sim) -> tuple[np.ndarray, dict[int, str]]:
 
 def scan_scene(scene: Scene, *, frames: int, width: int, height: int) -> SceneScan:
     """Render the standard scan of a scene: an orbit around the table (tabletop) or a
-    room-by-room sweep (household), ``frames`` frames of ``width`` x ``height`` pixels."""
+    room-by-room sweep (household), ``frames`` frames of ``width`` x ``height`` pixels
+    (:func:`sim_envs.mujoco.scan.scan_views`). Render more views of it with
+    :func:`sim_envs.mujoco.scan.render_views` on ``scan.sim`` and ``geom_labels=scan.geom_labels``."""
+    from sim_envs.mujoco.scan import scan_views
     from sim_envs.mujoco.scene import build_mujoco
     from sim_envs.scenes.graph import object_aabbs, scene_graph
-    from sim_envs.envs.scene_scan import scan_trajectory
 
     if frames < 1 or width < 8 or height < 8:
         raise ValueError(f"scan: expected frames >= 1 and an image of at least 8x8, got {frames} frames of {width}x{height}")
     sim = build_mujoco(scene)
     labels, names = _geom_labels(sim)
     scan = SceneScan(scene, sim, [], names, object_aabbs(sim), scene_graph(sim), labels)
-    scan.frames = render_views(scan, scan_trajectory(scene, frames), width, height)
+    scan.frames = scan_views(sim, frames, width, height, geom_labels=labels)
     return scan
 
 
-def render_views(scan: SceneScan, poses: list[tuple], width: int, height: int) -> list[ScanFrame]:
-    """Frames from (eye, target) pairs, with label images."""
-    from sim_envs.mujoco.camera import MujocoRGBDCamera
-
-    cam = MujocoRGBDCamera(scan.sim.model, scan.sim.data, width, height, geom_object=scan.geom_labels)
-    out = []
-    try:
-        for eye, target in poses:
-            cam.set_pose(eye, target)
-            f = cam.render()
-            out.append(ScanFrame(f.rgb.copy(), f.depth.copy(), f.K.copy(), f.cam_to_world.copy(), f.segmentation.astype(np.int32)))
-    finally:
-        cam.close()
-    return out
+def scan_tabletop(scene_id: str, suite: str, *, frames: int, width: int, height: int) -> SceneScan:
+    """:func:`scan_scene` of a shipped tabletop scene; ``ValueError`` naming ``suite`` for a
+    scene without a table."""
+    scene = load_shipped_scene(scene_id)
+    if scene.table is None:
+        raise ValueError(f"{suite} suite: expected a tabletop scene, got {scene_id!r}")
+    return scan_scene(scene, frames=frames, width=width, height=height)
 
 
-@functools.lru_cache(maxsize=4)
-def _encoder(name: str):
-    if name == "oracle":
-        from conceptfusion.perception.text_tower import MiniLMTextEncoder
+def fuse_frames(mapper, scan: SceneScan, frames: list[RGBDFrame] | None = None):
+    """Reset ``mapper`` (with the scan's label names, which only oracle perception reads) and
+    fuse ``frames`` (default: the whole scan); returns the mapper.
 
-        return MiniLMTextEncoder()
-    from conceptfusion.perception.registry import make_encoder
-
-    return make_encoder(name)
-
-
-def scene_mapper(encoder: str, proposer: str = "rgbd", *, persistent: bool = True):
-    """A :class:`~agents.concept_map.ConceptMapper` as :func:`agents.builtin.make_mapper`
-    builds it, with the encoder loaded once per process."""
-    from agents.builtin import ORACLE_MIN_SCORE
-    from agents.concept_map import ConceptMapper, MapperConfig
-    from conceptfusion.perception.masks.registry import make_proposer
-
-    enc = _encoder(encoder)
-    if encoder == "oracle":
-        return ConceptMapper(enc, oracle=True, config=MapperConfig(persistent=persistent, min_score=ORACLE_MIN_SCORE))
-    floor = getattr(enc, "info", {}).get("metrics", {}).get("score_floor") if hasattr(enc, "info") else None
-    return ConceptMapper(enc, make_proposer(proposer), MapperConfig(persistent=persistent, min_score=floor))
-
-
-def fuse_frames(mapper, scan: SceneScan, frames: list[ScanFrame] | None = None):
-    """Reset ``mapper`` and fuse ``frames`` (default: the whole scan); returns the mapper."""
-    mapper.reset(scan.label_names if mapper.oracle else None)
+    Build the mapper with :func:`agents.builtin.make_mapper`, as the agents do; its featurizer
+    loads each encoder once per process."""
+    mapper.reset(scan.label_names)
     for f in scan.frames if frames is None else frames:
-        mapper.integrate(f.observation(), segmentation=f.labels)
+        mapper.integrate(f.observation(), segmentation=f.segmentation)
     return mapper
 
 

@@ -36,7 +36,8 @@ import zlib
 
 import numpy as np
 
-from harness.maps.scan import SceneScan, fuse_frames, load_shipped_scene, scan_scene, scene_mapper
+from agents.builtin import make_mapper
+from harness.maps.scan import SceneScan, fuse_frames, load_shipped_scene, scan_scene
 
 __all__ = ["QUESTION_TYPES", "METHODS", "generate_questions", "answer_questions", "run_spatial_scene", "distance_ok"]
 
@@ -55,10 +56,10 @@ def distance_ok(answer: float | None, truth: float) -> bool:
 def _entities(scan: SceneScan) -> dict[str, dict]:
     """Askable things by id: visible objects with unique names, furniture, the table."""
     n_labels = max(scan.label_names) + 1
-    per_frame = np.stack([np.bincount(f.labels[f.labels >= 0], minlength=n_labels)[:n_labels] for f in scan.frames])
+    per_frame = np.stack([np.bincount(f.segmentation[f.segmentation >= 0], minlength=n_labels)[:n_labels] for f in scan.frames])
     # seen well enough to form a region (the mapper needs 20 points) in at least one frame
     counts = np.where(per_frame.max(axis=0) >= 30, per_frame.sum(axis=0), 0)
-    h, w = scan.frames[0].labels.shape
+    h, w = scan.frames[0].segmentation.shape
     min_px = max(10, int(0.0026 * h * w))  # 50 pixels at 160 x 120
     names = [v for v in scan.label_names.values()]
     n = scan.num_objects
@@ -168,10 +169,10 @@ def answer_questions(scan: SceneScan, questions: list[dict], method: str, encode
     view = scan.frames[0].cam_to_world[:3, 2].copy()
     out: list[dict] = []
     if method == "3d":
-        mapper = fuse_frames(scene_mapper(encoder, "rgbd"), scan)
+        mapper = fuse_frames(make_mapper(encoder, "rgbd"), scan)
         return [{**q, **_answer(mapper, parser, q, view)} for q in questions]
-    mapper = scene_mapper(encoder, "rgbd", persistent=False)
-    counts = np.stack([[np.bincount(f.labels[f.labels >= 0], minlength=max(scan.label_names) + 1)[lab] for lab in range(max(scan.label_names) + 1)]
+    mapper = make_mapper(encoder, "rgbd", persistent=False)
+    counts = np.stack([[np.bincount(f.segmentation[f.segmentation >= 0], minlength=max(scan.label_names) + 1)[lab] for lab in range(max(scan.label_names) + 1)]
                        for f in scan.frames])  # (frames, labels)
     best = {}
     for k, q in enumerate(questions):

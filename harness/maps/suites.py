@@ -1,11 +1,13 @@
-"""Jobs of the map suites: ``query``, ``ablation`` and ``spatial``, scored against simulator
-ground truth (see :mod:`harness.maps.query`, :mod:`harness.maps.ablation`,
-:mod:`harness.maps.spatial` for what each measures and how).
+"""The map suites: ``query``, ``ablation`` and ``spatial``, scored against simulator ground truth
+(see :mod:`harness.maps.query`, :mod:`harness.maps.ablation`, :mod:`harness.maps.spatial` for
+what each measures and how).
 
-One job = one record: ``query`` per (scene, encoder) with ``agent="conceptfusion"``;
-``ablation`` per (scene, variant) with ``agent=<variant>``; ``spatial`` per (scene, method)
-with ``agent="map-3d"`` or ``"frame-2.5d"``. ``episode_id`` is the scene id. Jobs are
-picklable, deterministic and independent: each rebuilds its scene, scan and map.
+A map suite is a :class:`MapSuite`: the ``task`` its records carry, the run options it reads,
+the :class:`MapCase` s it scores (``cases``) and how it scores one (``score``). One case = one
+record: ``query`` per (scene, encoder) with ``agent="conceptfusion"``; ``ablation`` per (scene,
+variant) with ``agent=<variant>``; ``spatial`` per (scene, method) with ``agent="map-3d"`` or
+``"frame-2.5d"``. Cases are deterministic and independent: each rebuilds its scene, scan and
+map. Turning cases into jobs and records is the runner's part (:mod:`harness.runner.map_jobs`).
 
 Options taken from the run's ``agent_kwargs`` (and then part of the job's key):
 ``frames``, ``width``, ``height`` (scan size) and, for ``ablation``, ``proposer``
@@ -14,66 +16,54 @@ Options taken from the run's ``agent_kwargs`` (and then part of the job's key):
 
 from __future__ import annotations
 
-import difflib
-import logging
-import time
-import traceback
-from dataclasses import dataclass, field
+from dataclasses import dataclass
 from pathlib import Path
+from typing import Callable
 
-__all__ = ["MapJob", "MAP_SUITES", "map_suite_jobs", "run_map_job", "DEFAULT_SCENES", "ablation_encoder"]
+from conceptfusion.names import lookup
+from conceptfusion.perception.featurizer import ORACLE, make_featurizer
+from harness.maps.ablation import VARIANTS, run_ablation_scene
+from harness.maps.query import run_query_scene
+from harness.maps.scan import shipped_scene_ids
+from harness.maps.spatial import METHODS, run_spatial_scene
 
-_log = logging.getLogger(__name__)
-
-MAP_SUITES = {"query": "map_query", "ablation": "map_ablation", "spatial": "spatial_qa"}
-"""Map suite name -> the ``task`` its records carry."""
+__all__ = ["MapCase", "MapSuite", "MAP_SUITES", "get_map_suite", "scene_ids", "DEFAULT_SCENES", "ablation_encoder",
+           "heatmap_file"]
 
 DEFAULT_SCENES = {"tabletop": 6, "household": 4}
 """How many shipped scenes of each kind a suite uses by default (the first ones, sorted)."""
 
-_OPTIONS = {"query": ("frames", "width", "height"), "ablation": ("frames", "width", "height", "proposer"),
-            "spatial": ("frames", "width", "height")}
-
 
 @dataclass(frozen=True)
-class MapJob:
-    """One map-suite job: everything a worker needs, picklable."""
+class MapCase:
+    """One scored unit of a map suite: a method (or variant) on one shipped scene with one encoder."""
 
-    run_id: str
-    suite: str
     agent: str
     """The method or variant (``"conceptfusion"``, an ablation variant, ``"map-3d"``, ``"frame-2.5d"``)."""
     encoder: str
     scene_id: str
-    seed: int = 0
-    options: dict = field(default_factory=dict)
-    """Scan size and proposer overrides (stored as the record's ``agent_kwargs``)."""
-    out_dir: str | None = None
-    """Run folder for side files (the query suite's heatmap .npz); None: none written."""
     note: str = ""
     """Why the encoder differs from the run's, if it does."""
 
-    @property
-    def task(self) -> str:
-        return MAP_SUITES[self.suite]
 
-    @property
-    def episode_id(self) -> str:
-        return self.scene_id
+@dataclass(frozen=True)
+class MapSuite:
+    """One map suite."""
 
-    @property
-    def label(self) -> str:
-        return f"{self.agent} {self.scene_id} [{self.encoder}]"
+    name: str
+    task: str
+    """The ``task`` its records carry."""
+    options: tuple[str, ...]
+    """The run's ``agent_kwargs`` it reads (scan size, proposer)."""
+    cases: Callable[[str, "int | None"], list[MapCase]]
+    """``(run encoder, limit of scenes of each kind) -> cases``, in a fixed order."""
+    score: Callable[[MapCase, dict, int, "str | None"], "tuple[dict, dict, dict]"]
+    """``(case, options, seed, out_dir) -> (metrics, extras, timings)``; ``out_dir`` (a run
+    folder, or None) receives side files. Raises for a broken scene or encoder."""
 
-    def key_record(self) -> dict:
-        """The fields :func:`harness.runner.results.record_key` reads, as the job's record will have them."""
-        return {"suite": self.suite, "agent": self.agent, "agent_kwargs": dict(self.options), "encoder": self.encoder,
-                "episode_id": self.episode_id, "seed": self.seed}
 
-
-def _scenes(kind: str, limit: int | None) -> list[str]:
-    from harness.maps.scan import shipped_scene_ids
-
+def scene_ids(kind: str, limit: int | None) -> list[str]:
+    """The first ``limit`` shipped scenes of ``kind`` (default :data:`DEFAULT_SCENES`)."""
     n = DEFAULT_SCENES[kind] if limit is None else int(limit)
     if n < 0:
         raise ValueError(f"limit: expected a non-negative number of scenes, got {limit}")
@@ -86,93 +76,75 @@ def ablation_encoder(encoder: str) -> tuple[str, str]:
     The oracle has no image embeddings to mix, so it falls back to ``"embedded"`` when the
     shipped tower loads, else to ``"color"``.
     """
-    if encoder != "oracle":
+    if encoder != ORACLE:
         return encoder, ""
-    from harness.maps.scan import _encoder
-
     try:
-        _encoder("embedded")
+        make_featurizer("embedded")  # loads the tower once per process
         return "embedded", "the oracle has no image tower; the ablation uses 'embedded'"
     except (FileNotFoundError, ImportError, OSError) as exc:
         return "color", f"the oracle has no image tower and 'embedded' is not loadable ({exc}); the ablation uses 'color'"
 
 
-def map_suite_jobs(name: str, config, run_id: str, *, out_dir: str | Path | None = None) -> list[MapJob]:
-    """Jobs of map suite ``name`` for a :class:`harness.runner.run.RunConfig` (``encoder``, ``limit``
-    (scenes of each kind), ``seed``, ``agent_kwargs`` (see the module docstring)).
-
-    Raises ``ValueError`` for a suite that is not a map suite, naming the nearest ones.
-    """
-    if name not in MAP_SUITES:
-        near = difflib.get_close_matches(str(name), MAP_SUITES, n=2, cutoff=0.4)
-        hint = f"; did you mean {', '.join(repr(n) for n in near)}?" if near else ""
-        raise ValueError(f"unknown map suite {name!r}{hint} (map suites: {', '.join(MAP_SUITES)})")
-    opts = {k: v for k, v in dict(config.agent_kwargs or {}).items() if k in _OPTIONS[name]}
-    base = {"run_id": str(run_id), "suite": name, "seed": int(config.seed), "options": opts,
-            "out_dir": None if out_dir is None else str(out_dir)}
-    if name == "query":
-        return [MapJob(agent="conceptfusion", encoder=config.encoder, scene_id=s, **base) for s in _scenes("tabletop", config.limit)]
-    if name == "ablation":
-        from harness.maps.ablation import VARIANTS
-
-        enc, note = ablation_encoder(config.encoder)
-        return [MapJob(agent=v, encoder=enc, scene_id=s, note=note, **base) for s in _scenes("tabletop", config.limit) for v in VARIANTS]
-    from harness.maps.spatial import METHODS
-
-    scenes = _scenes("household", config.limit) + _scenes("tabletop", config.limit)
-    return [MapJob(agent=agent, encoder=config.encoder, scene_id=s, **base) for s in scenes for agent in METHODS.values()]
+def heatmap_file(out_dir: str | Path, case: MapCase, seed: int) -> Path:
+    """Where the query suite writes a case's heatmap ``.npz`` in a run folder."""
+    return Path(out_dir) / "heatmaps" / f"query-{case.scene_id}-{case.encoder}-seed{seed}.npz"
 
 
-def _run(job: MapJob) -> tuple[dict, dict, dict]:
-    o = job.options
-    size = {"width": int(o.get("width", 160)), "height": int(o.get("height", 120))}
-    if job.suite == "query":
-        from harness.maps.query import run_query_scene
-
-        heat = None
-        if job.out_dir is not None:
-            heat = Path(job.out_dir) / "heatmaps" / f"query-{job.scene_id}-{job.encoder}-seed{job.seed}.npz"
-        metrics, extras, timings = run_query_scene(job.scene_id, job.encoder, frames=int(o.get("frames", 12)), seed=job.seed,
-                                                   heatmap_path=heat, **size)
-        if heat is not None and heat.exists():
-            extras["heatmap_npz"] = str(heat.relative_to(job.out_dir))
-        return metrics, extras, timings
-    if job.suite == "ablation":
-        from harness.maps.ablation import run_ablation_scene
-        from harness.maps.scan import _encoder
-
-        metrics, extras, timings = run_ablation_scene(job.scene_id, job.agent, _encoder(job.encoder), proposer=str(o.get("proposer", "rgbd")),
-                                                      frames=int(o.get("frames", 12)), **size)
-        if job.note:
-            extras["encoder_note"] = job.note
-        return metrics, extras, timings
-    from harness.maps.spatial import METHODS, run_spatial_scene
-
-    method = {v: k for k, v in METHODS.items()}[job.agent]
-    frames = int(o["frames"]) if "frames" in o else None
-    return run_spatial_scene(job.scene_id, method, job.encoder, frames=frames, seed=job.seed, **size)
+def _size(options: dict) -> dict:
+    return {"width": int(options.get("width", 160)), "height": int(options.get("height", 120))}
 
 
-def run_map_job(job: MapJob) -> list[dict]:
-    """Run one job; returns its one record (``status="failed"`` with the error if it raised).
+def _query_cases(encoder: str, limit: int | None) -> list[MapCase]:
+    return [MapCase("conceptfusion", encoder, s) for s in scene_ids("tabletop", limit)]
 
-    ``extras["heatmap_npz"]`` (query suite, when the job has an ``out_dir``) is the heatmap's
-    path relative to ``out_dir``.
-    """
-    from harness.runner.results import make_record
 
-    if not isinstance(job, MapJob):
-        raise TypeError(f"run_map_job: expected a MapJob, got {type(job).__name__}")
-    t0 = time.perf_counter()
-    status, error, metrics, extras, timings = "ok", None, {}, {}, {}
-    try:
-        metrics, extras, timings = _run(job)
-    except Exception as exc:  # a broken scene or encoder becomes a failed record, not a stopped run
-        _log.warning("map job %s failed: %s", job.label, exc)
-        status, error = "failed", f"{type(exc).__name__}: {exc}\n{traceback.format_exc(limit=4)}"
-    timings = {**timings, "wall_s": time.perf_counter() - t0}
-    return [make_record(
-        run_id=job.run_id, suite=job.suite, task=job.task, agent=job.agent, agent_kwargs=dict(job.options), encoder=job.encoder,
-        episode_id=job.episode_id, seed=job.seed, status=status, error=error, metrics=metrics, timings=timings,
-        category=None, extras=extras,
-    )]
+def _ablation_cases(encoder: str, limit: int | None) -> list[MapCase]:
+    enc, note = ablation_encoder(encoder)
+    return [MapCase(v, enc, s, note) for s in scene_ids("tabletop", limit) for v in VARIANTS]
+
+
+def _spatial_cases(encoder: str, limit: int | None) -> list[MapCase]:
+    scenes = scene_ids("household", limit) + scene_ids("tabletop", limit)
+    return [MapCase(agent, encoder, s) for s in scenes for agent in METHODS.values()]
+
+
+def _score_query(case: MapCase, options: dict, seed: int, out_dir: str | None) -> tuple[dict, dict, dict]:
+    heat = None if out_dir is None else heatmap_file(out_dir, case, seed)
+    metrics, extras, timings = run_query_scene(case.scene_id, case.encoder, frames=int(options.get("frames", 12)), seed=seed,
+                                               heatmap_path=heat, **_size(options))
+    if heat is not None and heat.exists():
+        extras["heatmap_npz"] = str(heat.relative_to(out_dir))
+    return metrics, extras, timings
+
+
+def _score_ablation(case: MapCase, options: dict, seed: int, out_dir: str | None) -> tuple[dict, dict, dict]:
+    metrics, extras, timings = run_ablation_scene(case.scene_id, case.agent, case.encoder, proposer=str(options.get("proposer", "rgbd")),
+                                                  frames=int(options.get("frames", 12)), **_size(options))
+    if case.note:
+        extras["encoder_note"] = case.note
+    return metrics, extras, timings
+
+
+_SPATIAL_METHOD = {agent: method for method, agent in METHODS.items()}
+
+
+def _score_spatial(case: MapCase, options: dict, seed: int, out_dir: str | None) -> tuple[dict, dict, dict]:
+    frames = int(options["frames"]) if "frames" in options else None
+    return run_spatial_scene(case.scene_id, _SPATIAL_METHOD[case.agent], case.encoder, frames=frames, seed=seed, **_size(options))
+
+
+MAP_SUITES: dict[str, MapSuite] = {
+    s.name: s
+    for s in (
+        MapSuite("query", "map_query", ("frames", "width", "height"), _query_cases, _score_query),
+        MapSuite("ablation", "map_ablation", ("frames", "width", "height", "proposer"), _ablation_cases, _score_ablation),
+        MapSuite("spatial", "spatial_qa", ("frames", "width", "height"), _spatial_cases, _score_spatial),
+    )
+}
+"""Every map suite by name."""
+
+
+def get_map_suite(name: str) -> MapSuite:
+    """The map suite called ``name``; :class:`~conceptfusion.errors.UnknownNameError` (a
+    ``ValueError``) naming the nearest ones otherwise."""
+    return lookup(MAP_SUITES, name, "map suite", n=2, listing=f"map suites: {', '.join(MAP_SUITES)}")

@@ -14,11 +14,11 @@ from __future__ import annotations
 
 import math
 from dataclasses import asdict, dataclass, field
-from difflib import get_close_matches
 from statistics import NormalDist
 
 import numpy as np
 
+from conceptfusion.names import did_you_mean
 from harness.runner.results import agent_label, latest_records
 
 __all__ = [
@@ -253,9 +253,8 @@ def _agent_values(records, label, suite, encoder, metric, labels_seen) -> dict:
                              f"encoders ({out[pair_key][0]!r}, {e!r}); pass encoder= to choose one")
         out[pair_key] = (e, metric_value(r, metric))
     if not out:
-        hint = get_close_matches(label, sorted(labels_seen), n=3, cutoff=0.3)
         raise ValueError(f"no records of agent {label!r} (suite={suite!r}, encoder={encoder!r}); agents present: "
-                         f"{sorted(labels_seen)}" + (f"; did you mean {hint}?" if hint else ""))
+                         f"{sorted(labels_seen)}" + did_you_mean(label, sorted(labels_seen), cutoff=0.3))
     return {k: v for k, (_, v) in out.items()}
 
 

@@ -1,15 +1,16 @@
-"""Where episodes run: in this process, in a local pool of worker processes, or on a Ray cluster.
+"""Where jobs run: in this process, in a local pool of worker processes, or on a Ray cluster.
 
-Every backend takes :class:`~harness.runner.tasks.EpisodeJob` s and yields result records as episodes
-finish (in completion order; records carry their episode ids). Results do not depend on the
-backend: an episode is a pure function of its job (scene, episode, seed, agent settings).
+Every backend takes :class:`~harness.runner.jobs.Job` s (episode jobs and map jobs alike), calls
+``job.run()`` and yields the result records as jobs finish (in completion order; records carry
+their keys). Results do not depend on the backend: a job is a pure function of its fields
+(scene, episode, seed, agent settings).
 
-* ``serial``: one episode after another in this process (debugging, tests);
+* ``serial``: one job after another in this process (debugging, tests); no timeouts;
 * ``process`` (default): ``workers`` processes (default: the CPU count), started with the
-  ``spawn`` method so no simulator or GL state is inherited. An episode that runs past its job's
+  ``spawn`` method so no simulator or GL state is inherited. A job that runs past its
   ``timeout_s`` has its worker killed and is recorded as ``timeout``; a worker that dies (a crash
-  in native code) is recorded as ``failed`` with its exit code. Both are replaced and the run
-  goes on;
+  in native code) is recorded as ``failed`` with its exit code (``job.failure_record``). Both
+  are replaced and the run goes on;
 * ``ray``: ``ray.remote`` tasks on a cluster (``address="auto"`` or ``"ray://host:10001"``) or a
   local Ray instance (``address=None``); timeouts cancel the task. Needs the ``ray`` extra.
 """
@@ -19,47 +20,43 @@ from __future__ import annotations
 import multiprocessing as mp
 import os
 import queue
+import signal
 import time
 from typing import Iterable, Iterator
 
-from harness.runner.tasks import EpisodeJob, run_episode
+from conceptfusion.errors import ConceptFusionError, HarnessError
+from conceptfusion.names import did_you_mean
+from harness.runner.jobs import Job
 
-__all__ = ["BACKENDS", "run_jobs", "RayUnavailableError", "failure_record"]
+__all__ = ["BACKENDS", "run_jobs", "RayUnavailableError"]
 
 BACKENDS = ("process", "serial", "ray")
 
 
-class RayUnavailableError(RuntimeError):
-    """Ray is not installed or its cluster cannot be reached."""
+class RayUnavailableError(ConceptFusionError, RuntimeError):
+    """Ray is not installed or its cluster cannot be reached (a ``RuntimeError``, not a ``ValueError``:
+    the commands that report bad settings with exit status 2 let it through as before)."""
 
 
-def failure_record(job: EpisodeJob, status: str, error: str, wall_s: float) -> dict:
-    """The record of an episode whose worker timed out or died."""
-    from harness.runner.results import make_record
-
-    return make_record(
-        run_id=job.run_id, suite=job.suite, task=job.task, agent=job.agent, agent_kwargs=dict(job.agent_kwargs),
-        encoder=job.encoder, episode_id=job.episode.episode_id, seed=int(job.seed), status=status, error=error,
-        metrics={"success": False}, timings={"wall_s": wall_s}, category=None, extras={},
-    )
+def _run_job(job: Job) -> list[dict]:
+    """What a worker runs for a job (module level, so that Ray ships it by reference)."""
+    return job.run()
 
 
-def _serial(jobs: list[EpisodeJob]) -> Iterator[dict]:
+def _serial(jobs: list[Job]) -> Iterator[dict]:
     for job in jobs:
-        yield run_episode(job)
+        yield from _run_job(job)
 
 
 def _worker_main(inbox, outbox) -> None:
     """Worker loop: run jobs until told to stop (``None``)."""
-    import signal
-
     signal.signal(signal.SIGINT, signal.SIG_IGN)  # the parent handles Ctrl-C
     while True:
         item = inbox.get()
         if item is None:
             break
         index, job = item
-        outbox.put((index, run_episode(job)))
+        outbox.put((index, _run_job(job)))
 
 
 class _Worker:
@@ -67,10 +64,10 @@ class _Worker:
         self.inbox = ctx.Queue()
         self.proc = ctx.Process(target=_worker_main, args=(self.inbox, outbox), daemon=True)
         self.proc.start()
-        self.job: tuple[int, EpisodeJob] | None = None
+        self.job: tuple[int, Job] | None = None
         self.started = 0.0
 
-    def assign(self, index: int, job: EpisodeJob) -> None:
+    def assign(self, index: int, job: Job) -> None:
         self.job, self.started = (index, job), time.monotonic()
         self.inbox.put((index, job))
 
@@ -80,7 +77,7 @@ class _Worker:
         self.proc.join(timeout=5)
 
 
-def _process_pool(jobs: list[EpisodeJob], workers: int) -> Iterator[dict]:
+def _process_pool(jobs: list[Job], workers: int) -> Iterator[dict]:
     ctx = mp.get_context("spawn")
     outbox = ctx.Queue()
     pending = list(enumerate(jobs))[::-1]
@@ -92,15 +89,15 @@ def _process_pool(jobs: list[EpisodeJob], workers: int) -> Iterator[dict]:
                 if w.job is None and pending:
                     w.assign(*pending.pop())
             try:
-                index, record = outbox.get(timeout=0.5)
+                index, records = outbox.get(timeout=0.5)
             except queue.Empty:
-                index, record = None, None
-            if record is not None:
+                index, records = None, None
+            if records is not None:
                 for w in pool:
                     if w.job is not None and w.job[0] == index:
                         w.job = None
                 done += 1
-                yield record
+                yield from records
             now = time.monotonic()
             for k, w in enumerate(pool):
                 if w.job is None:
@@ -111,12 +108,12 @@ def _process_pool(jobs: list[EpisodeJob], workers: int) -> Iterator[dict]:
                     w.kill()
                     pool[k] = _Worker(ctx, outbox)
                     done += 1
-                    yield failure_record(job, "timeout", f"episode exceeded {job.timeout_s:.0f} s; its worker was stopped", elapsed)
+                    yield job.failure_record("timeout", f"episode exceeded {job.timeout_s:.0f} s; its worker was stopped", elapsed)
                 elif not w.proc.is_alive():
                     code = w.proc.exitcode
                     pool[k] = _Worker(ctx, outbox)
                     done += 1
-                    yield failure_record(job, "failed", f"worker process died (exit code {code}) during the episode", elapsed)
+                    yield job.failure_record("failed", f"worker process died (exit code {code}) during the episode", elapsed)
     finally:
         for w in pool:
             if w.proc.is_alive():
@@ -126,7 +123,7 @@ def _process_pool(jobs: list[EpisodeJob], workers: int) -> Iterator[dict]:
             w.kill()
 
 
-def _ray(jobs: list[EpisodeJob], workers: int, address: str | None) -> Iterator[dict]:
+def _ray(jobs: list[Job], workers: int, address: str | None) -> Iterator[dict]:
     try:
         import ray
     except ImportError as exc:
@@ -139,32 +136,34 @@ def _ray(jobs: list[EpisodeJob], workers: int, address: str | None) -> Iterator[
                 ray.init(num_cpus=max(1, workers), ignore_reinit_error=True, log_to_driver=False, include_dashboard=False)
         except Exception as exc:  # ConnectionError, RuntimeError ... depending on the Ray version
             raise RayUnavailableError(f"cannot reach the Ray cluster at {address or 'a new local instance'}: {exc}") from exc
-    remote = ray.remote(num_cpus=1, max_retries=0)(run_episode)
+    remote = ray.remote(num_cpus=1, max_retries=0)(_run_job)
     refs = {remote.remote(job): (job, time.monotonic()) for job in jobs}
     while refs:
         ready, _ = ray.wait(list(refs), num_returns=1, timeout=0.5)
         for ref in ready:
             job, t0 = refs.pop(ref)
             try:
-                yield ray.get(ref)
+                records = ray.get(ref)
             except Exception as exc:  # the task's process died
-                yield failure_record(job, "failed", f"Ray task failed: {type(exc).__name__}: {exc}", time.monotonic() - t0)
+                records = [job.failure_record("failed", f"Ray task failed: {type(exc).__name__}: {exc}", time.monotonic() - t0)]
+            yield from records
         now = time.monotonic()
         for ref, (job, t0) in list(refs.items()):
             if now - t0 > job.timeout_s:
                 ray.cancel(ref, force=True)
                 refs.pop(ref)
-                yield failure_record(job, "timeout", f"episode exceeded {job.timeout_s:.0f} s; its Ray task was cancelled", now - t0)
+                yield job.failure_record("timeout", f"episode exceeded {job.timeout_s:.0f} s; its Ray task was cancelled", now - t0)
 
 
-def run_jobs(jobs: Iterable[EpisodeJob], *, backend: str = "process", workers: int | None = None, address: str | None = None) -> Iterator[dict]:
-    """Run episodes on a backend; yields one record per job as it finishes."""
+def run_jobs(jobs: Iterable[Job], *, backend: str = "process", workers: int | None = None, address: str | None = None) -> Iterator[dict]:
+    """Run jobs of any kind on a backend; yields each job's records as it finishes.
+
+    Raises :class:`~conceptfusion.errors.HarnessError` (a ``ValueError``) for an unknown
+    ``backend``, naming the nearest one.
+    """
     jobs = list(jobs)
     if backend not in BACKENDS:
-        import difflib
-
-        near = difflib.get_close_matches(str(backend), BACKENDS, n=1)
-        raise ValueError(f"backend: expected one of {BACKENDS}, got {backend!r}" + (f"; did you mean {near[0]!r}?" if near else ""))
+        raise HarnessError(f"backend: expected one of {BACKENDS}, got {backend!r}" + did_you_mean(backend, BACKENDS, n=1, cutoff=0.6))
     if not jobs:
         return iter(())
     workers = int(workers or os.cpu_count() or 1)

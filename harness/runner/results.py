@@ -28,6 +28,7 @@ from dataclasses import dataclass
 from datetime import datetime, timezone
 from pathlib import Path
 
+from conceptfusion.errors import HarnessError
 from conceptfusion.io_utils import atomic_write_bytes, atomic_write_text
 
 __all__ = [
@@ -58,7 +59,7 @@ _OPTIONAL = {
 _KEY_FIELDS = ("suite", "agent", "encoder", "episode_id", "seed")
 
 
-class ResultsFormatError(ValueError):
+class ResultsFormatError(HarnessError):
     """A results or run-settings file is corrupt, of another format or of a newer version, or a
     resumed run's settings differ from the stored ones."""
 

@@ -1,9 +1,13 @@
-"""Running suites: jobs from episodes x agents, resume, progress with ETA, results on disk.
+"""Running suites: jobs for every suite, resume, progress with ETA, results on disk.
+
+Every suite becomes :class:`~harness.runner.jobs.Job` s (episode suites: episodes x agents, see
+:func:`episode_jobs`; map suites: :func:`harness.runner.map_jobs.map_suite_jobs`), and all of
+them go to one backend through :func:`harness.runner.backends.run_jobs`.
 
 A run lives in a folder: ``run.json`` (its settings) and ``results.jsonl`` (one record per
-episode, appended as each finishes, so an interrupted run loses at most the episodes in flight).
-``resume=True`` repairs a half-written last line, checks the settings match, and runs only
-the episodes without a record.
+episode or map case, appended as each finishes, so an interrupted run loses at most the jobs in
+flight). ``resume=True`` repairs a half-written last line, checks the settings match, and runs
+only the jobs without a record.
 """
 
 from __future__ import annotations
@@ -15,10 +19,19 @@ from dataclasses import dataclass, field
 from pathlib import Path
 from typing import Callable
 
+from conceptfusion.names import unknown_name_error
+from conceptfusion.perception.featurizer import PerceptionSpec
+from harness.runner.backends import run_jobs
+from harness.runner.jobs import Job, import_plugins
+from harness.runner.map_jobs import map_suite_jobs
+from harness.runner.results import (
+    agent_label, append_record, completed_keys, load_results, read_run_config, record_key, repair_results, write_run_config,
+)
 from harness.runner.suites import Suite, get_suite
 from harness.runner.tasks import EpisodeJob
+from sim_envs.scenes.episodes import load_episodes
 
-__all__ = ["RunConfig", "episode_jobs", "run_suites", "Progress"]
+__all__ = ["RunConfig", "episode_jobs", "suite_jobs", "run_suites", "Progress"]
 
 
 @dataclass(frozen=True)
@@ -29,7 +42,9 @@ class RunConfig:
     agents: tuple[str, ...] | None = None
     """Agents per episode suite (None: each suite's defaults)."""
     encoder: str = "embedded"
-    """Perception for the map-using agents and the map suites."""
+    """Perception for the map-using agents and the map suites: an encoder spec
+    (:class:`~conceptfusion.perception.featurizer.PerceptionSpec`, accepted too and stored as its
+    string); an unknown name fails here, naming the nearest ones."""
     agent_kwargs: dict = field(default_factory=dict)
     """Extra options for every agent that accepts them (e.g. ``{"integrate_every": 2}``)."""
     limit: int | None = None
@@ -42,6 +57,9 @@ class RunConfig:
     plugins: tuple[str, ...] = ()
     """Modules imported (in every worker too) before agents are built: they register agents by
     name with :func:`agents.registry.register_agent`."""
+
+    def __post_init__(self) -> None:
+        object.__setattr__(self, "encoder", str(PerceptionSpec.parse(self.encoder)))
 
     def settings(self) -> dict:
         """The part that must match on resume (not the backend: results do not depend on it)."""
@@ -76,27 +94,15 @@ class Progress:
         self.stream.flush()
 
 
-def import_plugins(plugins) -> None:
-    """Import the modules that register user agents; ``ValueError`` naming the one that fails."""
-    import importlib
-
-    for name in plugins or ():
-        try:
-            importlib.import_module(name)
-        except ImportError as exc:
-            raise ValueError(f"--import {name!r}: cannot import it: {exc}") from exc
-
-
 def _agent_kwargs_for(agent: str, encoder: str, extra: dict) -> dict:
     import inspect
 
-    from agents.registry import AGENTS, _load_builtin, _resolve
+    from agents.registry import AGENTS, resolve_agent
 
-    _load_builtin()
     spec = AGENTS.get(agent)
     if spec is None:  # a user agent given by import path: every option, and the encoder if it takes one
         kw = dict(extra)
-        factory = _resolve(agent)  # an unimportable path fails here, before any episode runs
+        factory = resolve_agent(agent)  # an unimportable path fails here, before any episode runs
         try:
             params = inspect.signature(factory).parameters
         except (TypeError, ValueError):  # a callable without a signature (some builtins)
@@ -112,9 +118,6 @@ def _agent_kwargs_for(agent: str, encoder: str, extra: dict) -> dict:
 
 def episode_jobs(suite: Suite, config: RunConfig, run_id: str) -> list[EpisodeJob]:
     """Jobs of an episode suite: every (agent, episode) pair, agents in order."""
-    from agents.registry import make_agent  # noqa: F401  (validates agent names early below)
-    from sim_envs.scenes.episodes import load_episodes
-
     import_plugins(config.plugins)
     episodes = load_episodes(suite.episodes_file).episodes
     limit = config.limit if config.limit is not None else suite.limit
@@ -135,33 +138,44 @@ def episode_jobs(suite: Suite, config: RunConfig, run_id: str) -> list[EpisodeJo
 
 
 def _check_agent(agent: str, suite: Suite) -> None:
-    from agents.registry import AGENTS, _load_builtin, agent_names
+    from agents.registry import AGENTS, agent_names
 
-    _load_builtin()
     if agent in AGENTS:
         if AGENTS[agent].task not in (suite.task, "any"):
             raise ValueError(f"agent {agent!r} solves {AGENTS[agent].task}, not suite {suite.name!r} ({suite.task}); "
                              f"agents for it: {', '.join(agent_names(suite.task))}")
         return
     if ":" not in agent:
-        import difflib
+        raise unknown_name_error("agent", agent, AGENTS,
+                                 listing=f"for suite {suite.name!r}: {', '.join(agent_names(suite.task))}; or 'module:Class'")
 
-        near = difflib.get_close_matches(agent, AGENTS, n=3, cutoff=0.4)
-        hint = f"; did you mean {', '.join(repr(n) for n in near)}?" if near else ""
-        raise ValueError(f"unknown agent {agent!r}{hint} (for suite {suite.name!r}: {', '.join(agent_names(suite.task))}; or 'module:Class')")
+
+def _map_jobs(suite: Suite, config: RunConfig, run_id: str, run_dir: Path) -> list[Job]:
+    return map_suite_jobs(suite.name, config, run_id, out_dir=run_dir)
+
+
+def _episode_jobs(suite: Suite, config: RunConfig, run_id: str, run_dir: Path) -> list[Job]:
+    return episode_jobs(suite, config, run_id)
+
+
+_JOB_BUILDERS = {"episodes": _episode_jobs, "maps": _map_jobs}
+"""Suite kind -> ``(suite, config, run_id, run_dir) -> jobs``."""
+
+
+def suite_jobs(suite: Suite, config: RunConfig, run_id: str, run_dir: str | Path) -> list[Job]:
+    """The jobs of one suite of any kind; side files (map suites) go into ``run_dir``."""
+    return _JOB_BUILDERS[suite.kind](suite, config, run_id, Path(run_dir))
 
 
 def run_suites(
     config: RunConfig, run_dir: str | Path, *, resume: bool = False, on_record: Callable[[dict], None] | None = None,
     progress: bool = True,
 ) -> list[dict]:
-    """Run every suite of ``config`` into ``run_dir``; returns all records of the run."""
-    from harness.runner.backends import run_jobs
-    from harness.maps.suites import map_suite_jobs, run_map_job
-    from harness.runner.results import (
-        agent_label, append_record, completed_keys, load_results, read_run_config, record_key, repair_results, write_run_config,
-    )
+    """Run every suite of ``config`` into ``run_dir``; returns all records of the run.
 
+    The jobs of all suites (episode and map suites alike) are built first, so that a bad agent
+    name fails before any work, then run together on ``config.backend``.
+    """
     run_dir = Path(run_dir)
     results = run_dir / "results.jsonl"
     suites = [get_suite(s) for s in config.suites]  # unknown names fail before any work
@@ -177,30 +191,24 @@ def run_suites(
         run_id = uuid.uuid4().hex[:12]
         write_run_config(run_dir, {"run_id": run_id, "settings": config.settings(), "backend": config.backend})
     done = completed_keys(load_results(results))
-
-    def keep(rec: dict) -> None:
+    jobs = [job for suite in suites for job in suite_jobs(suite, config, run_id, run_dir)]
+    todo = [j for j in jobs if record_key(j.key_record()) not in done]
+    bar = Progress(len(todo), "+".join(config.suites)) if progress and todo else None
+    for rec in run_jobs(todo, backend=config.backend, workers=config.workers, address=config.address):
         append_record(results, rec)
         if on_record:
             on_record(rec)
-
-    for suite in suites:
-        if suite.kind == "maps":
-            jobs = map_suite_jobs(suite.name, config, run_id, out_dir=run_dir)
-        else:
-            jobs = episode_jobs(suite, config, run_id)
-        todo = [j for j in jobs if record_key(j.key_record()) not in done]
-        bar = Progress(len(todo), suite.name) if progress and todo else None
-        if suite.kind == "maps":
-            for job in todo:
-                for rec in run_map_job(job):
-                    keep(rec)
-                if bar:
-                    bar.update(job.label)
-            continue
-        for rec in run_jobs(todo, backend=config.backend, workers=config.workers, address=config.address):
-            keep(rec)
-            if bar:
-                ok = "ok" if rec["metrics"].get("success") else rec["status"] if rec["status"] != "ok" else "fail"
-                bar.update(f"{agent_label(rec['agent'], rec['agent_kwargs'])} {rec['episode_id']} {ok}")
+        if bar:
+            bar.update(_progress_note(rec))
     return load_results(results)
+
+
+def _progress_note(rec: dict) -> str:
+    if rec["status"] != "ok":
+        outcome = rec["status"]
+    elif "success" in rec["metrics"]:
+        outcome = "ok" if rec["metrics"]["success"] else "fail"
+    else:  # map suites score without a success flag
+        outcome = "ok"
+    return f"{rec['suite']} {agent_label(rec['agent'], rec['agent_kwargs'])} {rec['episode_id']} [{rec['encoder']}] {outcome}"
 

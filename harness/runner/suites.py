@@ -18,10 +18,10 @@ Map suites score ConceptFusion maps against simulator ground truth (:mod:`harnes
 
 from __future__ import annotations
 
-import difflib
 from dataclasses import dataclass, field
 from pathlib import Path
 
+from conceptfusion.names import lookup
 from sim_envs.scenes.episodes import SCENES_ROOT
 
 __all__ = ["Suite", "SUITES", "get_suite", "DEFAULT_SUITES"]
@@ -92,8 +92,4 @@ DEFAULT_SUITES = ("query", "ablation", "spatial", "rearrange", "search")
 
 def get_suite(name: str) -> Suite:
     """The suite called ``name``; ``ValueError`` naming the nearest ones otherwise."""
-    if name in SUITES:
-        return SUITES[name]
-    near = difflib.get_close_matches(str(name), SUITES, n=3, cutoff=0.4)
-    hint = f"; did you mean {', '.join(repr(n) for n in near)}?" if near else ""
-    raise ValueError(f"unknown suite {name!r}{hint} (suites: {', '.join(SUITES)})")
+    return lookup(SUITES, name, "suite")

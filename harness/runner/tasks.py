@@ -1,9 +1,10 @@
 """Episode rollouts per task: build the environment, run an agent through one episode, score it.
 
-This is the only place that joins an environment and an agent. :func:`run_episode` takes a
-picklable :class:`EpisodeJob` and returns a result record (see :mod:`harness.runner.results`); it never
-raises for what happens inside the episode: an exception becomes ``status="failed"`` with the
-error, so a broken agent cannot stop a run.
+This is the only place that joins an environment and an agent. :class:`EpisodeJob` is a
+:class:`~harness.runner.jobs.Job`: picklable, and ``job.run()`` (or :func:`run_episode`) returns
+its result record (see :mod:`harness.runner.results`). It never raises for what happens inside
+the episode: an exception becomes ``status="failed"`` with the error, so a broken agent cannot
+stop a run.
 """
 
 from __future__ import annotations
@@ -16,6 +17,9 @@ from typing import Any, Callable
 
 import numpy as np
 
+from agents.registry import AGENTS, make_agent
+from harness.runner.jobs import import_plugins, job_record
+from harness.runner.results import agent_label
 from sim_envs.scenes.episodes import Episode
 
 __all__ = ["EpisodeJob", "run_episode", "episode_seed", "TASK_RUNNERS", "close_cached_envs"]
@@ -23,7 +27,8 @@ __all__ = ["EpisodeJob", "run_episode", "episode_seed", "TASK_RUNNERS", "close_c
 
 @dataclass(frozen=True)
 class EpisodeJob:
-    """One episode for one agent: everything a worker process needs, picklable."""
+    """One episode for one agent: everything a worker process needs, picklable (a
+    :class:`~harness.runner.jobs.Job`)."""
 
     run_id: str
     suite: str
@@ -34,6 +39,7 @@ class EpisodeJob:
     seed: int = 0
     env_kwargs: dict = field(default_factory=dict)
     timeout_s: float = 600.0
+    """Wall-clock limit of the episode on the process and Ray backends."""
     plugins: tuple[str, ...] = ()
     """Modules to import before the agent is built (they register user agents)."""
 
@@ -41,10 +47,22 @@ class EpisodeJob:
     def encoder(self) -> str:
         return str(self.agent_kwargs.get("encoder", "none"))
 
+    @property
+    def label(self) -> str:
+        return f"{agent_label(self.agent, self.agent_kwargs)} {self.episode.episode_id}"
+
     def key_record(self) -> dict:
         """The fields that identify this episode's record (see :func:`harness.runner.results.record_key`)."""
         return {"suite": self.suite, "agent": self.agent, "agent_kwargs": dict(self.agent_kwargs), "encoder": self.encoder,
                 "episode_id": self.episode.episode_id, "seed": self.seed}
+
+    def run(self) -> list[dict]:
+        """Run the episode: its one record (see :func:`run_episode`)."""
+        return [run_episode(self)]
+
+    def failure_record(self, status: str, error: str, wall_s: float) -> dict:
+        """The record of the episode when its worker timed out or died."""
+        return job_record(self, status=status, error=error, metrics={"success": False}, timings={"wall_s": wall_s})
 
 
 def episode_seed(job: EpisodeJob) -> int:
@@ -115,7 +133,7 @@ def _run_search(job: EpisodeJob, agent) -> tuple[dict, dict, str | None, dict]:
     env = _cached_env(("object_search", tuple(sorted(job.env_kwargs.items()))), lambda: _search_env(job.env_kwargs))
     path: list[list[float]] = []
     info, steps, timings = _rollout(env, agent, job, on_step=lambda o, i: path.append([round(float(v), 3) for v in o["base_pose"][:2]]))
-    box = env.unwrapped._goal_box
+    box = env.unwrapped.goal_box
     goal = env.unwrapped.scene.object(job.episode.goals[0].object_id)
     metrics = {
         "success": bool(info["success"]), "spl": float(info["spl"]), "distance_to_goal": float(info["distance_to_goal"]),
@@ -151,18 +169,12 @@ TASK_RUNNERS: dict[str, Callable[[EpisodeJob, Any], tuple[dict, dict, str | None
 
 def run_episode(job: EpisodeJob) -> dict:
     """Run one episode and return its result record (never raises for in-episode errors)."""
-    from agents.registry import AGENTS, make_agent
-    from harness.runner.results import make_record
-
     t0 = time.perf_counter()
     status, error, metrics, timings, category, extras = "ok", None, {}, {}, None, {}
     try:
         if job.task not in TASK_RUNNERS:
             raise ValueError(f"task: expected one of {sorted(TASK_RUNNERS)}, got {job.task!r}")
-        if job.plugins:
-            from harness.runner.run import import_plugins
-
-            import_plugins(job.plugins)
+        import_plugins(job.plugins)
         agent = make_agent(job.agent, **job.agent_kwargs)
         metrics, timings, category, extras = TASK_RUNNERS[job.task](job, agent)
         spec = AGENTS.get(job.agent)
@@ -174,9 +186,8 @@ def run_episode(job: EpisodeJob) -> dict:
         metrics = {"success": False}
         close_cached_envs()  # an environment that raised may be in a bad state
     timings = {**timings, "wall_s": time.perf_counter() - t0}
-    return make_record(
-        run_id=job.run_id, suite=job.suite, task=job.task, agent=job.agent, agent_kwargs=dict(job.agent_kwargs),
-        encoder=job.encoder, episode_id=job.episode.episode_id, seed=int(job.seed), status=status, error=error,
+    return job_record(
+        job, status=status, error=error,
         metrics={k: (None if isinstance(v, float) and not np.isfinite(v) else v) for k, v in metrics.items()},
         timings=timings, category=category, extras=extras,
     )

@@ -1,1 +1,6 @@
-"""sim_envs.assets."""
+"""Object and furniture assets: procedural objects from MuJoCo primitives (``objects``),
+meshes from ``pybullet_data`` (``meshes``), optional LIBERO assets (``libero``) and procedural
+furniture with its support surfaces (``furniture``).
+
+May import: :mod:`conceptfusion` base modules.
+"""

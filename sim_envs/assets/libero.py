@@ -22,7 +22,8 @@ import xml.etree.ElementTree as ET
 from dataclasses import dataclass
 from pathlib import Path
 
-from conceptfusion.errors import MissingDependencyError
+from conceptfusion.errors import MissingDependencyError, UnknownKeyError
+from conceptfusion.names import did_you_mean
 
 __all__ = ["LiberoObject", "LiberoMJCF", "asset_root", "list_objects", "load_object", "OBJECT_GROUPS"]
 
@@ -147,10 +148,7 @@ def load_object(
     if isinstance(obj, str):
         by_name = {o.name: o for o in list_objects()}
         if obj not in by_name:
-            import difflib
-
-            near = difflib.get_close_matches(obj, by_name, n=3)
-            raise KeyError(f"no usable LIBERO object {obj!r}" + (f"; did you mean {near}?" if near else ""))
+            raise UnknownKeyError(f"no usable LIBERO object {obj!r}" + did_you_mean(obj, by_name, cutoff=0.6))
         obj = by_name[obj]
     prefix = f"{obj.name}_" if prefix is None else prefix
     root = ET.parse(obj.xml_path).getroot()

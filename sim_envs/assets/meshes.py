@@ -23,7 +23,9 @@ from typing import Iterable
 
 import numpy as np
 
+from conceptfusion.errors import UnknownKeyError
 from conceptfusion.io_utils import atomic_write_bytes, atomic_write_text
+from conceptfusion.names import unknown_name_error
 
 __all__ = [
     "MeshKind",
@@ -90,10 +92,8 @@ def pybullet_data_dir() -> Path:
 
 def _kind(kind: str) -> MeshKind:
     if kind not in MESH_KINDS:
-        import difflib
-
-        near = difflib.get_close_matches(kind, MESH_KINDS, n=3)
-        raise KeyError(f"unknown mesh kind {kind!r}; known: {sorted(MESH_KINDS)}" + (f" (did you mean {near}?)" if near else ""))
+        raise unknown_name_error("mesh kind", kind, MESH_KINDS, cutoff=0.6, listing=f"known: {sorted(MESH_KINDS)}",
+                                 error=UnknownKeyError)
     return MESH_KINDS[kind]
 
 

@@ -18,6 +18,8 @@ from dataclasses import dataclass
 from functools import partial
 from typing import Callable
 
+from conceptfusion.errors import UnknownKeyError
+from conceptfusion.names import lookup
 from sim_envs.assets.meshes import MESH_KINDS, mesh_geoms
 
 __all__ = ["Asset", "ASSETS", "MESH_ASSETS", "ALL_ASSETS", "COLORS", "material_xml", "get_asset"]
@@ -139,9 +141,5 @@ ALL_ASSETS: dict[str, Asset] = {**ASSETS, **MESH_ASSETS}
 
 def get_asset(name: str) -> Asset:
     """The asset called ``name`` (procedural or mesh); ``KeyError`` naming the nearest names."""
-    if name in ALL_ASSETS:
-        return ALL_ASSETS[name]
-    import difflib
-
-    near = difflib.get_close_matches(name, ALL_ASSETS, n=3)
-    raise KeyError(f"unknown asset {name!r}" + (f"; did you mean {near}?" if near else f"; known: {sorted(ALL_ASSETS)}"))
+    return lookup(ALL_ASSETS, name, "asset", cutoff=0.6, listing=f"known: {', '.join(sorted(ALL_ASSETS))}",
+                  error=UnknownKeyError)

@@ -16,16 +16,17 @@ import gymnasium as gym
 import numpy as np
 from gymnasium import spaces
 from scipy import ndimage
-from scipy.sparse import coo_matrix
-from scipy.sparse.csgraph import dijkstra
 
-from sim_envs.scenes.episodes import Episode, resolve_scene
-from sim_envs.scenes.floorplan import occupancy_grid
+from planners.geodesic import geodesic_to_goal
+from sim_envs.envs.rendering import LastFrameRendering, check_render_mode, frame_spaces
 from sim_envs.mujoco.camera import MujocoRGBDCamera
 from sim_envs.mujoco.scene import build_mujoco
+from sim_envs.scenes.episodes import Episode, resolve_scene
+from sim_envs.scenes.floorplan import occupancy_grid
 from sim_envs.scenes.graph import object_aabbs, scene_graph
+from sim_envs.scenes.search_episodes import default_search_episodes
 
-__all__ = ["ObjectSearchEnv", "geodesic_field", "geodesic_to_goal", "box_distance_xy"]
+__all__ = ["ObjectSearchEnv", "box_distance_xy"]
 
 _ACTION_LOW = np.array([-0.3, -1.5, 0.0], np.float32)
 _ACTION_HIGH = np.array([0.6, 1.5, 1.0], np.float32)
@@ -37,50 +38,7 @@ def box_distance_xy(xy, lo_xy, hi_xy) -> float:
     return float(np.linalg.norm(d))
 
 
-def geodesic_field(free_hw: np.ndarray, goal_hw: np.ndarray, cell: float) -> np.ndarray:
-    """Shortest 8-connected path length (m) over free cells from every cell to the nearest goal
-    cell (``inf`` where no goal cell is reachable, and on blocked cells).
-
-    Shape:
-        free_hw, goal_hw: (H, W) bool; returns (H, W) float64.
-    """
-    h, w = free_hw.shape
-    idx = np.full((h, w), -1, np.int64)
-    cells = np.argwhere(free_hw)
-    idx[cells[:, 0], cells[:, 1]] = np.arange(len(cells))
-    out = np.full((h, w), np.inf)
-    sources = idx[goal_hw & free_hw]
-    if len(sources) == 0:
-        return out
-    rows, cols, weights = [], [], []
-    for dr, dc in ((0, 1), (1, 0), (1, 1), (1, -1)):
-        c0, c1 = max(0, -dc), w - max(0, dc)
-        a = idx[0 : h - dr, c0:c1]
-        b = idx[dr:h, c0 + dc : c1 + dc]
-        ok = (a >= 0) & (b >= 0)
-        rows.append(a[ok]), cols.append(b[ok]), weights.append(np.full(int(ok.sum()), cell * math.hypot(dr, dc)))
-    n = len(cells)
-    graph = coo_matrix((np.concatenate(weights), (np.concatenate(rows), np.concatenate(cols))), shape=(n, n)).tocsr()
-    out[cells[:, 0], cells[:, 1]] = dijkstra(graph, directed=False, indices=sources, min_only=True)
-    return out
-
-
-def geodesic_to_goal(free_hw: np.ndarray, origin, cell: float, start_xy, goal_mask_hw: np.ndarray) -> float:
-    """Shortest 8-connected path length (m) over free cells from ``start_xy`` to any goal cell.
-
-    ``inf`` when no goal cell is reachable.
-
-    Shape:
-        free_hw, goal_mask_hw: (H, W) bool; origin, start_xy: (2,).
-    """
-    h, w = free_hw.shape
-    r, c = (np.floor((np.asarray(start_xy) - origin) / cell).astype(int))[::-1]
-    if not (0 <= r < h and 0 <= c < w) or not free_hw[r, c]:
-        return math.inf
-    return float(geodesic_field(free_hw, goal_mask_hw, cell)[r, c])
-
-
-class ObjectSearchEnv(gym.Env):
+class ObjectSearchEnv(LastFrameRendering, gym.Env):
     """Find an object in an apartment from a text description, and stop next to it.
 
     **Task**: the observation's ``goal`` describes one object ("the red mug"). The agent drives
@@ -130,8 +88,7 @@ class ObjectSearchEnv(gym.Env):
         scenes_root: str | None = None,
         render_mode: str | None = None,
     ) -> None:
-        if render_mode not in (None, "rgb_array"):
-            raise ValueError(f"render_mode: expected None or 'rgb_array', got {render_mode!r}")
+        check_render_mode(render_mode)
         if success_distance <= 0 or robot_radius <= 0 or control_dt <= 0:
             raise ValueError("success_distance, robot_radius, control_dt: expected positive values")
         self._episodes = tuple(episodes) if episodes else None
@@ -143,10 +100,7 @@ class ObjectSearchEnv(gym.Env):
         self.action_space = spaces.Box(_ACTION_LOW, _ACTION_HIGH, dtype=np.float32)
         self.observation_space = spaces.Dict(
             {
-                "rgb": spaces.Box(0, 255, (height, width, 3), np.uint8),
-                "depth": spaces.Box(0.0, np.inf, (height, width), np.float32),
-                "K": spaces.Box(-np.inf, np.inf, (3, 3), np.float64),
-                "cam_to_world": spaces.Box(-np.inf, np.inf, (4, 4), np.float64),
+                **frame_spaces(height, width),
                 "base_pose": spaces.Box(-np.inf, np.inf, (3,), np.float64),
                 "goal": spaces.Text(max_length=200, min_length=1, charset=string.ascii_letters + string.digits + " '-,."),
             }
@@ -154,7 +108,7 @@ class ObjectSearchEnv(gym.Env):
         self._sim = None
         self._camera: MujocoRGBDCamera | None = None
         self._scene_key = None
-        self._last = None
+        self._last_frame = None
 
     # -- episode set-up --------------------------------------------------------------------
 
@@ -187,8 +141,6 @@ class ObjectSearchEnv(gym.Env):
         episode = (options or {}).get("episode")
         if episode is None:
             if not self._episodes:
-                from sim_envs.scenes.search_episodes import default_search_episodes
-
                 self._episodes = default_search_episodes().episodes
             episode = self._episodes[int(self.np_random.integers(len(self._episodes)))]
         if not isinstance(episode, Episode) or not episode.goals or episode.start_pose is None:
@@ -254,6 +206,14 @@ class ObjectSearchEnv(gym.Env):
 
     # -- sensing ---------------------------------------------------------------------------
 
+    @property
+    def goal_box(self) -> np.ndarray:
+        """The current goal object's axis-aligned box in the world frame (metres), set by ``reset``.
+
+        Shape: ``(2, 3)``: ``[[x_min, y_min, z_min], [x_max, y_max, z_max]]``.
+        """
+        return self._goal_box
+
     def camera_eye_target(self, pose=None) -> tuple[np.ndarray, np.ndarray]:
         """Camera position and look-at point for a base pose ``(x, y, yaw)``."""
         x, y, yaw = self._pose if pose is None else pose
@@ -264,11 +224,8 @@ class ObjectSearchEnv(gym.Env):
     def _observe(self):
         self._camera.set_pose(*self.camera_eye_target())
         f = self._camera.render()
-        self._last = f
-        obs = {
-            "rgb": f.rgb, "depth": f.depth, "K": f.K, "cam_to_world": f.cam_to_world,
-            "base_pose": self._pose.copy(), "goal": self.episode.instruction,
-        }
+        self._last_frame = f
+        obs = {**f.observation(), "base_pose": self._pose.copy(), "goal": self.episode.instruction}
         info = {
             "episode_id": self.episode.episode_id,
             "scene_id": self.scene.id,
@@ -285,13 +242,3 @@ class ObjectSearchEnv(gym.Env):
             "spl": 0.0,
         }
         return obs, info
-
-    def render(self):
-        if self.render_mode == "rgb_array" and self._last is not None:
-            return self._last.rgb
-        return None
-
-    def close(self) -> None:
-        if self._camera is not None:
-            self._camera.close()
-            self._camera = None

@@ -2,7 +2,6 @@
 
 from __future__ import annotations
 
-import difflib
 import importlib
 import string
 from typing import Any
@@ -11,14 +10,17 @@ import gymnasium as gym
 import numpy as np
 from gymnasium import spaces
 
+from conceptfusion.errors import UnknownNameError
+from conceptfusion.names import did_you_mean
 from sim_envs.scenes.episodes import MAX_LINE_DISTANCE, Episode, EpisodeSet, load_episodes, resolve_scene, tabletop_goals, tabletop_instruction
-from sim_envs.mujoco.camera import RGBDFrame
+from conceptfusion.frames import RGBDFrame
 from sim_envs.envs.rearrange_eval import VIEW_DIR, RearrangeResult, evaluate, line_normal
+from sim_envs.envs.rendering import LastFrameRendering, check_render_mode, frame_spaces
+from sim_envs.envs.tabletop_sim import TabletopSim
 from sim_envs.scenes.format import Scene
 from sim_envs.scenes.gen_tabletop import generate_tabletop
 from sim_envs.scenes.graph import scene_graph
-from sim_envs.envs.scene_scan import orbit_trajectory
-from sim_envs.envs.tabletop_sim import TabletopSim
+from sim_envs.scenes.trajectories import orbit_trajectory
 
 __all__ = ["TabletopRearrangeEnv", "BACKENDS", "make_backend", "ACTION_LOW", "ACTION_HIGH", "camera_pose"]
 
@@ -38,8 +40,7 @@ _MAX_INSTRUCTION = 256
 
 def _backend_entry(name: str) -> str:
     if name not in BACKENDS:
-        near = difflib.get_close_matches(str(name), BACKENDS, n=2)
-        raise ValueError(f"backend: expected one of {sorted(BACKENDS)}, got {name!r}" + (f"; did you mean {near[0]!r}?" if near else ""))
+        raise UnknownNameError(f"backend: expected one of {sorted(BACKENDS)}, got {name!r}" + did_you_mean(name, BACKENDS, n=1, cutoff=0.6))
     return BACKENDS[name]
 
 
@@ -61,7 +62,7 @@ def camera_pose(scene: Scene) -> tuple[tuple[float, float, float], tuple[float, 
     return (cx, cy - 0.72, top + 0.85), (cx, cy + 0.04, top)
 
 
-class TabletopRearrangeEnv(gym.Env):
+class TabletopRearrangeEnv(LastFrameRendering, gym.Env):
     """Push named objects across a dividing line on a table.
 
     **Task**: the instruction (e.g. ``"push the red mug to the right of the line"``) names one
@@ -115,6 +116,7 @@ class TabletopRearrangeEnv(gym.Env):
     """
 
     metadata = {"render_modes": ["rgb_array"], "render_fps": 4}
+    _renderer_attr = "sim"  # close() releases the simulation backend
 
     def __init__(
         self,
@@ -133,8 +135,7 @@ class TabletopRearrangeEnv(gym.Env):
         render_mode: str | None = None,
     ) -> None:
         _backend_entry(backend)  # raises naming the valid backends
-        if render_mode not in (None, "rgb_array"):
-            raise ValueError(f"render_mode: expected None or 'rgb_array', got {render_mode!r}")
+        check_render_mode(render_mode)
         if width <= 0 or height <= 0:
             raise ValueError(f"width, height: expected positive sizes, got {width}x{height}")
         if scan_frames < 0:
@@ -151,10 +152,7 @@ class TabletopRearrangeEnv(gym.Env):
         self.action_space = spaces.Box(ACTION_LOW, ACTION_HIGH, dtype=np.float32)
         self.observation_space = spaces.Dict(
             {
-                "rgb": spaces.Box(0, 255, (height, width, 3), np.uint8),
-                "depth": spaces.Box(0.0, np.inf, (height, width), np.float32),
-                "K": spaces.Box(-np.inf, np.inf, (3, 3), np.float64),
-                "cam_to_world": spaces.Box(-np.inf, np.inf, (4, 4), np.float64),
+                **frame_spaces(height, width),
                 "instruction": spaces.Text(_MAX_INSTRUCTION, min_length=1, charset=INSTRUCTION_CHARSET),
                 "line": spaces.Box(-np.inf, np.inf, (2, 2), np.float64),
             }
@@ -261,8 +259,7 @@ class TabletopRearrangeEnv(gym.Env):
         f = self.sim.render(eye, target, self.width, self.height, self.fovy_deg, True)
         self._last_frame = f
         self._result = self.evaluate()
-        obs = {"rgb": f.rgb, "depth": f.depth, "K": f.K, "cam_to_world": f.cam_to_world, "instruction": self.episode.instruction,
-               "line": np.asarray(scene.line, np.float64)[:, :2].copy()}
+        obs = {**f.observation(), "instruction": self.episode.instruction, "line": np.asarray(scene.line, np.float64)[:, :2].copy()}
         scan_seg = None
         if self.scan_frames:
             frames = self.scan(self.scan_frames, width=self.scan_width, height=self.scan_height, segmentation=True)
@@ -311,13 +308,3 @@ class TabletopRearrangeEnv(gym.Env):
             raise ValueError(f"num_frames: expected at least 1, got {num_frames}")
         w, h = int(width or self.width), int(height or self.height)
         return [self.sim.render(eye, tgt, w, h, self.fovy_deg, segmentation) for eye, tgt in orbit_trajectory(self.sim.scene, num_frames)]
-
-    def render(self):
-        if self.render_mode == "rgb_array" and self._last_frame is not None:
-            return self._last_frame.rgb
-        return None
-
-    def close(self) -> None:
-        if self.sim is not None:
-            self.sim.close()
-            self.sim = None

@@ -9,7 +9,7 @@ from typing import Protocol
 
 import numpy as np
 
-from sim_envs.mujoco.camera import RGBDFrame
+from conceptfusion.frames import RGBDFrame
 from sim_envs.scenes.format import Scene
 
 __all__ = ["PushOutcome", "TabletopSim", "PUSH_HEIGHT"]

@@ -5,13 +5,13 @@ depth buffer gives metric depth at the same time. Shadows, reflections and multi
 off by default (they cost 10x in colour rendering on a software rasteriser and add nothing
 a mapping pipeline needs). Create one camera per process; never share one across processes.
 
-Outputs follow the :mod:`conceptfusion` conventions: OpenCV camera frame, 4x4 float64
-camera-to-world pose, metric depth along the optical axis (``inf`` where nothing is hit).
+Outputs are :class:`conceptfusion.frames.RGBDFrame` in the :mod:`conceptfusion` conventions:
+OpenCV camera frame, 4x4 float64 camera-to-world pose, metric depth along the optical axis
+(``inf`` where nothing is hit), ``segmentation`` (H, W) int32 object index (-1: background or
+unnamed geometry).
 """
 
 from __future__ import annotations
-
-from dataclasses import dataclass
 
 import numpy as np
 
@@ -19,26 +19,30 @@ from sim_envs import headless  # noqa: F401  (selects the GL backend before mujo
 
 import mujoco  # noqa: E402
 
-from conceptfusion.cameras import intrinsics_from_fovy, opengl_to_opencv_pose  # noqa: E402
+from conceptfusion.cameras import intrinsics_from_fovy  # noqa: E402
+from conceptfusion.errors import ShapeError  # noqa: E402
+from conceptfusion.frames import RGBDFrame  # noqa: E402
+from sim_envs.cameras import opengl_to_opencv_pose  # noqa: E402
 
-__all__ = ["RGBDFrame", "MujocoRGBDCamera", "look_at_gl"]
+__all__ = ["MujocoRGBDCamera", "look_at_gl", "mujoco_camera_pose"]
 
 
-@dataclass(frozen=True)
-class RGBDFrame:
-    """One posed RGB-D frame with instance segmentation.
+def mujoco_camera_pose(cam_xpos_3, cam_xmat_9) -> np.ndarray:
+    """OpenCV camera-to-world pose of a MuJoCo camera from ``data.cam_xpos``/``data.cam_xmat``.
+
+    MuJoCo's ``cam_xmat`` is the camera-to-world rotation of an OpenGL-style camera.
 
     Shape:
-        ``rgb`` (H, W, 3) uint8; ``depth`` (H, W) float32 metres (``inf``: nothing hit);
-        ``segmentation`` (H, W) int32 object index (-1: background or unnamed geometry);
-        ``K`` (3, 3); ``cam_to_world`` (4, 4) OpenCV convention.
+        ``cam_xpos_3`` (3,), ``cam_xmat_9`` (9,) or (3, 3) -> (4, 4) float64.
     """
-
-    rgb: np.ndarray
-    depth: np.ndarray
-    segmentation: np.ndarray
-    K: np.ndarray
-    cam_to_world: np.ndarray
+    pos = np.asarray(cam_xpos_3, dtype=np.float64).reshape(-1)
+    mat = np.asarray(cam_xmat_9, dtype=np.float64)
+    if pos.shape != (3,) or mat.size != 9:
+        raise ShapeError(f"expected cam_xpos (3,) and cam_xmat (9,) or (3, 3), got {pos.shape}, {mat.shape}")
+    T = np.eye(4)
+    T[:3, :3] = mat.reshape(3, 3)
+    T[:3, 3] = pos
+    return opengl_to_opencv_pose(T)
 
 
 def look_at_gl(eye, target, up=(0.0, 0.0, 1.0)) -> tuple[np.ndarray, np.ndarray]:
@@ -145,6 +149,11 @@ class MujocoRGBDCamera:
 
         With ``segmentation=False`` one colour pass gives colour and depth (about twice as
         fast) and ``RGBDFrame.segmentation`` is all -1.
+
+        Shape:
+            ``rgb`` (H, W, 3) uint8, ``depth`` (H, W) float32, ``K`` (3, 3), ``cam_to_world``
+            (4, 4), ``segmentation`` (H, W) int32; every array is the frame's own (no buffer
+            is shared with the camera).
         """
         self._gl.make_current()
         self._update(segment=False)
@@ -162,7 +171,7 @@ class MujocoRGBDCamera:
         depth = self._metric_depth(np.flipud(self._zbuf))
         # mjv_updateScene recomputes the camera frame; report exactly what was rendered.
         cam_to_world = opengl_to_opencv_pose(self._rendered_pose_gl())
-        return RGBDFrame(rgb, depth, seg, self.K.copy(), cam_to_world)
+        return RGBDFrame(rgb=rgb, depth=depth, K=self.K.copy(), cam_to_world=cam_to_world, segmentation=seg)
 
     def _rendered_pose_gl(self) -> np.ndarray:
         # The scene holds a stereo pair offset by half the inter-pupillary distance each;

@@ -18,7 +18,8 @@ from sim_envs import headless  # noqa: F401  (selects the GL backend before mujo
 
 import mujoco  # noqa: E402
 
-from sim_envs.mujoco.camera import MujocoRGBDCamera, RGBDFrame  # noqa: E402
+from conceptfusion.frames import RGBDFrame  # noqa: E402
+from sim_envs.mujoco.camera import MujocoRGBDCamera  # noqa: E402
 from sim_envs.mujoco.scene import MujocoScene, build_mjcf  # noqa: E402
 from sim_envs.scenes.format import Scene  # noqa: E402
 from sim_envs.scenes.graph import object_aabbs  # noqa: E402

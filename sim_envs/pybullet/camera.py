@@ -22,16 +22,31 @@ import logging
 
 import numpy as np
 
-from conceptfusion.cameras import intrinsics_from_fovy, opengl_depth_to_metric, pybullet_camera_pose
-from sim_envs.mujoco.camera import RGBDFrame
+from conceptfusion.cameras import intrinsics_from_fovy
+from conceptfusion.errors import ShapeError
+from conceptfusion.frames import RGBDFrame
+from sim_envs.cameras import opengl_depth_to_metric, opengl_to_opencv_pose
 
-__all__ = ["PyBulletRGBDCamera", "load_egl_plugin", "forget_client", "RENDERERS"]
+__all__ = ["PyBulletRGBDCamera", "load_egl_plugin", "forget_client", "pybullet_camera_pose", "RENDERERS"]
 
 RENDERERS = ("auto", "tiny", "egl")
 """Renderer names :class:`PyBulletRGBDCamera` accepts."""
 
 _log = logging.getLogger(__name__)
 _EGL_PLUGINS: dict[int, int] = {}
+
+
+def pybullet_camera_pose(view_matrix_16) -> np.ndarray:
+    """OpenCV camera-to-world pose from a PyBullet view matrix (16 floats, column-major).
+
+    Shape:
+        (16,) -> (4, 4) float64.
+    """
+    view = np.asarray(view_matrix_16, dtype=np.float64)
+    if view.size != 16:
+        raise ShapeError(f"view_matrix_16: expected 16 values, got {view.size}")
+    V = np.reshape(view, (4, 4), order="F")
+    return opengl_to_opencv_pose(np.linalg.inv(V))
 
 
 def load_egl_plugin(client: int) -> bool:
@@ -147,7 +162,7 @@ class PyBulletRGBDCamera:
         With ``segmentation=False`` the segmentation is all -1 (a little faster).
 
         Shape:
-            see :class:`~sim_envs.mujoco.camera.RGBDFrame`.
+            see :class:`~conceptfusion.frames.RGBDFrame`; ``segmentation`` (H, W) int32.
         """
         import pybullet as p
 
@@ -169,7 +184,7 @@ class PyBulletRGBDCamera:
             labels = self._lut[body]
         else:
             labels = np.full((self.height, self.width), -1, np.int32)
-        return RGBDFrame(rgb, depth, labels, self.K.copy(), pybullet_camera_pose(self._view))
+        return RGBDFrame(rgb=rgb, depth=depth, K=self.K.copy(), cam_to_world=pybullet_camera_pose(self._view), segmentation=labels)
 
     def close(self) -> None:
         """Nothing to release (the client owns the renderer); present for symmetry."""

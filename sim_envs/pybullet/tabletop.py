@@ -28,7 +28,7 @@ import math
 
 import numpy as np
 
-from sim_envs.mujoco.camera import RGBDFrame
+from conceptfusion.frames import RGBDFrame
 from sim_envs.pybullet.panda_kinematics import ARM_JOINTS, BASE_YAW, FINGER_JOINTS, HOME_JOINTS, PANDA_URDF, TIP_LINK, PandaKinematics, load_panda
 from sim_envs.pybullet.camera import RENDERERS, PyBulletRGBDCamera, forget_client, load_egl_plugin
 from sim_envs.pybullet.scene import build_pybullet
@@ -299,7 +299,7 @@ class PyBulletTabletop:
         """One posed RGB-D frame: OpenCV camera, metric depth, segmentation = object index.
 
         Shape:
-            see :class:`~sim_envs.mujoco.camera.RGBDFrame`.
+            see :class:`~conceptfusion.frames.RGBDFrame`.
         """
         key = (int(width), int(height), float(fovy_deg))
         cam = self._cameras.get(key)

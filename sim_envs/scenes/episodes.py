@@ -25,6 +25,7 @@ from pathlib import Path
 
 import numpy as np
 
+from conceptfusion.errors import SimError
 from conceptfusion.io_utils import atomic_write_text
 from sim_envs.envs.rearrange_eval import signed_line_distance
 from sim_envs.scenes.format import Scene, load_scene
@@ -44,7 +45,7 @@ SCENES_ROOT = Path(__file__).resolve().parents[2] / "scenes"
 """The shipped ``scenes/`` folder: the default root that scene paths are relative to."""
 
 
-class EpisodeFormatError(ValueError):
+class EpisodeFormatError(SimError):
     """An episode file or record is malformed; the message names the file and line."""
 
 

@@ -15,6 +15,7 @@ from pathlib import Path
 import numpy as np
 from scipy import ndimage
 
+from planners.geodesic import geodesic_to_goal
 from sim_envs.scenes.episodes import SCENES_ROOT, Episode, EpisodeSet, Goal, load_episodes, save_episodes
 from sim_envs.scenes.floorplan import occupancy_grid
 from sim_envs.scenes.format import Scene, load_scene
@@ -51,8 +52,6 @@ def generate_search_episodes(
     Everything follows from ``generator_seed``. Scene paths in the episodes are relative to
     ``scenes_root`` (default: the shipped ``scenes/`` folder).
     """
-    from sim_envs.envs.object_search import geodesic_to_goal
-
     rng = np.random.default_rng(generator_seed)
     episodes = []
     for path in scene_files:

@@ -6,7 +6,9 @@ import pytest
 
 import sim_envs  # noqa: F401
 from agents.concept_map import ConceptMapper, MapperConfig
+from conceptfusion.frames import RGBDFrame
 from conceptfusion.perception.encoders import ColorNameEncoder
+from conceptfusion.perception.featurizer import OracleFeaturizer, PerceivedFeaturizer
 from conceptfusion.perception.masks.registry import make_proposer
 from sim_envs.assets.objects import COLORS
 
@@ -36,7 +38,7 @@ def _unique_colour_objects(info):
 @pytest.mark.parametrize("oracle", [True, False])
 def test_mapper_finds_objects_and_rejects_absent_colour(scan, oracle):
     enc = ColorNameEncoder()
-    mapper = ConceptMapper(enc, None if oracle else make_proposer("gt"), oracle=oracle)
+    mapper = ConceptMapper(OracleFeaturizer(enc) if oracle else PerceivedFeaturizer(enc, make_proposer("gt")))
     info0 = scan[0][1]
     mapper.reset(dict(enumerate(info0["object_names"])))
     for obs, info in scan:
@@ -63,16 +65,16 @@ def test_mapper_finds_objects_and_rejects_absent_colour(scan, oracle):
 
 
 def test_single_frame_mode_keeps_only_the_last_view(scan):
-    mapper = ConceptMapper(ColorNameEncoder(), make_proposer("gt"), MapperConfig(persistent=False))
+    mapper = ConceptMapper(PerceivedFeaturizer(ColorNameEncoder(), make_proposer("gt")), MapperConfig(persistent=False))
     mapper.reset()
     sizes = []
     for obs, info in scan[:3]:
         mapper.integrate(obs, segmentation=info["segmentation"])
         sizes.append(len(mapper.map))
-    full = ConceptMapper(ColorNameEncoder(), make_proposer("gt"))
+    full = ConceptMapper(PerceivedFeaturizer(ColorNameEncoder(), make_proposer("gt")))
     full.reset()
     for obs, info in scan[:3]:
-        full.integrate(obs, segmentation=info["segmentation"])
+        full.integrate(RGBDFrame.from_observation(obs, info["segmentation"]))  # a frame carries its labels
     assert len(full.map) > max(sizes)
     valid = np.isfinite(scan[2][0]["depth"]).sum()
     assert sizes[-1] <= valid
@@ -81,8 +83,10 @@ def test_single_frame_mode_keeps_only_the_last_view(scan):
 def test_mapper_bad_input():
     enc = ColorNameEncoder()
     with pytest.raises(ValueError, match="mask proposer"):
-        ConceptMapper(enc, None)
-    m = ConceptMapper(enc, None, oracle=True)
+        PerceivedFeaturizer(enc, None)
+    with pytest.raises(TypeError, match="featurizer"):
+        ConceptMapper(enc)
+    m = ConceptMapper(OracleFeaturizer(enc))
     with pytest.raises(ValueError, match="object names"):
         m.reset()
     m.reset({0: "red mug"})
@@ -90,4 +94,8 @@ def test_mapper_bad_input():
         m.integrate({"rgb": np.zeros((4, 4, 3), np.uint8)})
     with pytest.raises(ValueError, match="non-empty"):
         m.locate("  ")
-    assert m.privileged and not ConceptMapper(enc, make_proposer("rgbd")).privileged
+    with pytest.raises(ValueError, match="segmentation"):
+        m.integrate({"rgb": np.zeros((4, 4, 3), np.uint8), "depth": np.ones((4, 4), np.float32),
+                     "K": np.eye(3), "cam_to_world": np.eye(4)})
+    assert m.privileged and not ConceptMapper(PerceivedFeaturizer(enc, make_proposer("rgbd"))).privileged
+    assert ConceptMapper(PerceivedFeaturizer(enc, make_proposer("gt"))).privileged

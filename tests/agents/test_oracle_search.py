@@ -5,7 +5,7 @@ import pytest
 
 from agents.oracle_search import OracleSearchAgent, descend
 from harness.runner.tasks import EpisodeJob, run_episode
-from sim_envs.envs.object_search import geodesic_field
+from planners.geodesic import geodesic_field
 from sim_envs.scenes.search_episodes import default_search_episodes
 
 

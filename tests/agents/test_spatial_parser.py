@@ -221,7 +221,7 @@ def test_parser_table():
     assert parser.parse("Is the fork in the drawer?").signature == "isContained(fork, drawer)"
     llm = make_parser("llm", base_url="http://127.0.0.1:1/v1", timeout_s=1.0)
     assert llm.config.url == "http://127.0.0.1:1/v1/chat/completions"
-    with pytest.raises(ValueError, match=r"unknown spatial parser 'patern'; did you mean pattern\?"):
+    with pytest.raises(ValueError, match=r"unknown spatial parser 'patern'; did you mean 'pattern'\?"):
         make_parser("patern")
     with pytest.raises(TypeError, match="takes no options"):
         make_parser("pattern", base_url="x")

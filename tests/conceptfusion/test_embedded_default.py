@@ -45,27 +45,21 @@ def test_shipped_metadata_records_the_recipe_and_reaches_the_target():
 def _object_crops(seed: int, focus: str, n_views: int = 6):
     """Ground-truth crops of every object seen from ``n_views`` cameras circling the object ``focus``."""
     from conceptfusion.perception.features import crop_masks
-    from sim_envs.mujoco.camera import MujocoRGBDCamera
+    from sim_envs.mujoco.scan import render_views
     from sim_envs.mujoco.scene import build_mujoco
     from sim_envs.scenes.gen_tabletop import generate_tabletop
 
     scene = generate_tabletop(seed)
-    ms = build_mujoco(scene)
-    cam = MujocoRGBDCamera(ms.model, ms.data, 320, 240, geom_object=ms.geom_object)
     target = next(o for o in scene.objects if o.name == focus).position
+    angles = [2 * math.pi * k / n_views for k in range(n_views)]
+    poses = [((target[0] + 0.5 * math.cos(a), target[1] + 0.5 * math.sin(a), target[2] + 0.35), target) for a in angles]
     crops, names = [], []
-    try:
-        for k in range(n_views):
-            a = 2 * math.pi * k / n_views
-            cam.set_pose((target[0] + 0.5 * math.cos(a), target[1] + 0.5 * math.sin(a), target[2] + 0.35), target)
-            f = cam.render()
-            ids, counts = np.unique(f.segmentation[f.segmentation >= 0], return_counts=True)
-            ids = ids[counts >= 300]
-            masks = f.segmentation[None] == ids[:, None, None]
-            crops += crop_masks(f.rgb, masks) if len(ids) else []
-            names += [scene.objects[i].name for i in ids]
-    finally:
-        cam.close()
+    for f in render_views(build_mujoco(scene), poses, 320, 240):
+        ids, counts = np.unique(f.segmentation[f.segmentation >= 0], return_counts=True)
+        ids = ids[counts >= 300]
+        masks = f.segmentation[None] == ids[:, None, None]
+        crops += crop_masks(f.rgb, masks) if len(ids) else []
+        names += [scene.objects[i].name for i in ids]
     return crops, np.array(names)
 
 

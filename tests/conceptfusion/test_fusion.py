@@ -30,8 +30,8 @@ def test_plane_recovered_within_millimetres_from_noisy_views():
     poses = orbit_poses((0.0, 0.0, 0.0), 1.0, 1.2, 8, sweep_deg=60.0)
     for pose in poses:
         f = _floor_frame(pose)
-        noisy = f.depth_hw + rng.normal(0.0, 0.001, f.depth_hw.shape).astype(np.float32)
-        fmap.integrate(f.rgb_hw3, noisy, K, pose)
+        noisy = f.depth + rng.normal(0.0, 0.001, f.depth.shape).astype(np.float32)
+        fmap.integrate(f.rgb, noisy, K, pose)
     z = fmap.points[:, 2]
     assert np.sqrt(np.mean(z**2)) < 0.002  # single-frame noise is 1 mm in depth
     assert np.abs(z).max() < 0.01
@@ -46,9 +46,9 @@ def test_identical_frames_merge_instead_of_duplicating():
     pose = look_at((0.3, -0.4, 1.0), (0.0, 0.0, 0.0))
     f = _floor_frame(pose)
     fmap = PointFusionMap(3)
-    s1 = fmap.integrate(f.rgb_hw3, f.depth_hw, K, pose, _uniform_features([1, 0, 0]))
+    s1 = fmap.integrate(f.rgb, f.depth, K, pose, _uniform_features([1, 0, 0]))
     conf1 = fmap.confidence
-    s2 = fmap.integrate(f.rgb_hw3, f.depth_hw, K, pose, _uniform_features([1, 0, 0]))
+    s2 = fmap.integrate(f.rgb, f.depth, K, pose, _uniform_features([1, 0, 0]))
     assert s1.added == len(fmap) and s2.added == 0 and s2.merged == s1.added
     assert np.allclose(fmap.confidence, 2 * conf1)
     # the border has no normal: (H-2)(W-2) pixels are fused
@@ -59,9 +59,9 @@ def test_positions_and_features_are_confidence_weighted_means():
     pose = look_at((0.0, 0.0, 1.0), (0.0, 0.001, 0.0))
     f = _floor_frame(pose)
     fmap = PointFusionMap(3, slots=4)
-    fmap.integrate(f.rgb_hw3, f.depth_hw, K, pose, _uniform_features([1, 0, 0]))
-    fmap.integrate(f.rgb_hw3, f.depth_hw + 0.01, K, pose, _uniform_features([0, 1, 0]))
-    fmap.integrate(f.rgb_hw3, f.depth_hw + 0.02, K, pose, _uniform_features([0, 0, 2]))
+    fmap.integrate(f.rgb, f.depth, K, pose, _uniform_features([1, 0, 0]))
+    fmap.integrate(f.rgb, f.depth + 0.01, K, pose, _uniform_features([0, 1, 0]))
+    fmap.integrate(f.rgb, f.depth + 0.02, K, pose, _uniform_features([0, 0, 2]))
     # Equal alpha per pixel across frames: position = mean of the three depths' vertices,
     # about 1 cm below the first frame's plane; feature = normalise(e1 + e2 + 2 e3) (eq. 1).
     centre = fmap.points[np.argmin(np.linalg.norm(fmap.points[:, :2], axis=1))]
@@ -76,7 +76,7 @@ def test_feature_beyond_slots_credits_the_most_similar_entry():
     f = _floor_frame(pose)
     fmap = PointFusionMap(3, slots=2)
     for v in ([1, 0, 0], [0, 1, 0], [0.9, 0.1, 0.0]):  # the third is closest to e1
-        fmap.integrate(f.rgb_hw3, f.depth_hw, K, pose, _uniform_features(v))
+        fmap.integrate(f.rgb, f.depth, K, pose, _uniform_features(v))
     # the third observation is credited to e1: S = 2a e1 + a e2
     assert np.allclose(fmap.features(), np.array([2.0, 1.0, 0.0]) / np.sqrt(5.0), atol=1e-5)
 
@@ -85,10 +85,10 @@ def test_zero_features_never_dilute():
     pose = look_at((0.2, 0.0, 1.0), (0.0, 0.0, 0.0))
     f = _floor_frame(pose)
     fmap = PointFusionMap(3)
-    fmap.integrate(f.rgb_hw3, f.depth_hw, K, pose, _uniform_features([0, 1, 0]))
+    fmap.integrate(f.rgb, f.depth, K, pose, _uniform_features([0, 1, 0]))
     fc = fmap.feature_confidence
-    fmap.integrate(f.rgb_hw3, f.depth_hw, K, pose, None)
-    fmap.integrate(f.rgb_hw3, f.depth_hw, K, pose, np.zeros((H, W, 3), np.float32))
+    fmap.integrate(f.rgb, f.depth, K, pose, None)
+    fmap.integrate(f.rgb, f.depth, K, pose, np.zeros((H, W, 3), np.float32))
     assert np.allclose(fmap.feature_confidence, fc)
     assert np.allclose(fmap.confidence, 3 * fc)
     assert np.allclose(fmap.features(), [0, 1, 0], atol=1e-6)
@@ -98,9 +98,9 @@ def test_points_beyond_distance_threshold_do_not_merge():
     pose = look_at((0.0, 0.0, 1.0), (0.0, 0.001, 0.0))
     f = _floor_frame(pose)
     fmap = PointFusionMap(3, dist_th=0.05)
-    fmap.integrate(f.rgb_hw3, f.depth_hw, K, pose)
+    fmap.integrate(f.rgb, f.depth, K, pose)
     n = len(fmap)
-    stats = fmap.integrate(f.rgb_hw3, f.depth_hw - 0.1, K, pose)  # 10 cm closer
+    stats = fmap.integrate(f.rgb, f.depth - 0.1, K, pose)  # 10 cm closer
     assert stats.merged == 0 and len(fmap) == 2 * n
 
 
@@ -108,7 +108,7 @@ def test_radial_confidence_prefers_the_image_centre():
     pose = look_at((0.0, 0.0, 1.0), (0.0, 0.001, 0.0))
     f = _floor_frame(pose)
     fmap = PointFusionMap(3)
-    fmap.integrate(f.rgb_hw3, f.depth_hw, K, pose)
+    fmap.integrate(f.rgb, f.depth, K, pose)
     xy = np.linalg.norm(fmap.points[:, :2], axis=1)
     conf = fmap.confidence
     assert conf[np.argmin(xy)] == pytest.approx(1.0, abs=1e-3)
@@ -121,13 +121,13 @@ def test_radial_confidence_prefers_the_image_centre():
 def test_invalid_depth_is_skipped():
     pose = look_at((0.0, 0.0, 1.0), (0.0, 0.001, 0.0))
     f = _floor_frame(pose)
-    depth = f.depth_hw.copy()
+    depth = f.depth.copy()
     depth[10, 10] = np.nan
     depth[20, 20] = -1.0
     depth[30, 30] = np.inf
     depth[5, 40] = 0.0
     fmap = PointFusionMap(3)
-    stats = fmap.integrate(f.rgb_hw3, depth, K, pose)
+    stats = fmap.integrate(f.rgb, depth, K, pose)
     assert np.all(np.isfinite(fmap.points))
     # each bad pixel removes itself and (through the normal stencil) up to 4 neighbours
     assert (H - 2) * (W - 2) - 20 <= len(fmap) < (H - 2) * (W - 2) - 4
@@ -139,23 +139,23 @@ def test_bad_inputs_get_clear_errors():
     f = _floor_frame(pose)
     fmap = PointFusionMap(3)
     with pytest.raises(ShapeError, match=r"rgb_hw3: expected shape \(48, 64, 3\)"):
-        fmap.integrate(f.rgb_hw3[:10], f.depth_hw, K, pose)
+        fmap.integrate(f.rgb[:10], f.depth, K, pose)
     with pytest.raises(DtypeError, match="millimetres"):
-        fmap.integrate(f.rgb_hw3, (f.depth_hw * 1000).astype(np.uint16), K, pose)
+        fmap.integrate(f.rgb, (f.depth * 1000).astype(np.uint16), K, pose)
     scaled = pose.copy()
     scaled[:3, :3] *= 1.1
     with pytest.raises(PoseError, match="rigid"):
-        fmap.integrate(f.rgb_hw3, f.depth_hw, K, scaled)
+        fmap.integrate(f.rgb, f.depth, K, scaled)
     with pytest.raises(PoseError, match="bottom row"):
         bad = pose.copy()
         bad[3, 0] = 1.0
-        fmap.integrate(f.rgb_hw3, f.depth_hw, K, bad)
+        fmap.integrate(f.rgb, f.depth, K, bad)
     with pytest.raises(ShapeError, match="feats_hwd"):
-        fmap.integrate(f.rgb_hw3, f.depth_hw, K, pose, np.ones((H, W, 5), np.float32))
+        fmap.integrate(f.rgb, f.depth, K, pose, np.ones((H, W, 5), np.float32))
     with pytest.raises(ValueError, match="finite features"):
-        fmap.integrate(f.rgb_hw3, f.depth_hw, K, pose, np.full((H, W, 3), np.nan, np.float32))
+        fmap.integrate(f.rgb, f.depth, K, pose, np.full((H, W, 3), np.nan, np.float32))
     with pytest.raises(ValueError, match="K_33"):
-        fmap.integrate(f.rgb_hw3, f.depth_hw, np.zeros((3, 3)), pose)
+        fmap.integrate(f.rgb, f.depth, np.zeros((3, 3)), pose)
     with pytest.raises(ValueError, match="dist_th"):
         PointFusionMap(3, dist_th=-1.0)
     with pytest.raises(ValueError, match="non-zero"):
@@ -169,17 +169,17 @@ def test_compiled_frame_points_match_the_numpy_reference():
 
     pose = look_at((0.4, -0.3, 0.9), (0.0, 0.1, 0.0))
     f = render_boxes(FLOOR + [Box("cube", (0.0, 0.0, 0.1), (0.2, 0.2, 0.2), (200, 0, 0))], K, pose, H, W)
-    depth = f.depth_hw.copy()
+    depth = f.depth.copy()
     depth[3, 7] = np.nan
     conf = radial_confidence(H, W, K)
-    pix, obs, alpha = _kernels.frame_points(depth, f.rgb_hw3.astype(np.float32), K, pose, np.float32(10.0), conf)
+    pix, obs, alpha = _kernels.frame_points(depth, f.rgb.astype(np.float32), K, pose, np.float32(10.0), conf)
     v = backproject(depth, K, max_depth=10.0)
     n = normal_map(v)
     valid = np.flatnonzero(np.isfinite(n[..., 0]).ravel())
     assert np.array_equal(pix, valid)
     assert np.allclose(obs[:, :3], transform_points(pose, v.reshape(-1, 3)[valid]), atol=1e-5)
     assert np.allclose(obs[:, 3:6], transform_directions(pose, n.reshape(-1, 3)[valid]), atol=1e-5)
-    assert np.array_equal(obs[:, 6:], f.rgb_hw3.reshape(-1, 3)[valid].astype(np.float32))
+    assert np.array_equal(obs[:, 6:], f.rgb.reshape(-1, 3)[valid].astype(np.float32))
     assert np.array_equal(alpha, conf.ravel()[valid])
 
 
@@ -194,7 +194,7 @@ def test_compact_features_equal_exact_running_means_within_slots():
     for t in range(4):
         pal = rng.normal(size=(5, 6)).astype(np.float32)
         idx = rng.integers(-1, 5, size=(H, W)).astype(np.int32)
-        fmap.integrate(f.rgb_hw3, f.depth_hw, K, pose, PixelFeatures(pal, idx))
+        fmap.integrate(f.rgb, f.depth, K, pose, PixelFeatures(pal, idx))
         alpha = fmap.confidence / (t + 1)  # the same alpha every frame at a fixed pose
         feat = np.concatenate([pal, np.zeros((1, 6), np.float32)])[idx[1:-1, 1:-1].ravel()]
         contrib = alpha[:, None] * feat

@@ -8,10 +8,11 @@ import numpy as np
 import pytest
 
 from conceptfusion.cameras import intrinsics_from_fovy
-from conceptfusion.errors import MissingDependencyError, ShapeError
-from conceptfusion.perception.masks.registry import PROPOSERS, GroundTruthProposer, MaskProposer, make_proposer
+from conceptfusion.errors import CheckpointError, MissingDependencyError, ShapeError
+from conceptfusion.perception.masks.base import GroundTruthProposer, MaskProposer
+from conceptfusion.perception.masks.registry import PROPOSERS, make_proposer
 from conceptfusion.perception.masks.rgbd import RGBDProposer
-from conceptfusion.perception.masks.sam import CheckpointError, SamConfig, SamProposer, infer_model_type
+from conceptfusion.perception.masks.sam import SamConfig, SamProposer, infer_model_type
 
 H, W = 6, 8
 K = intrinsics_from_fovy(60.0, W, H)

@@ -8,8 +8,9 @@ import pytest
 from conceptfusion.cameras import backproject, intrinsics_from_fovy, transform_points
 from conceptfusion.perception.encoders import ColorNameEncoder
 from conceptfusion.errors import DtypeError, ShapeError
-from conceptfusion.perception.masks.registry import MaskProposer
-from conceptfusion.perception.masks.rgbd import RGBDProposer, RGBDProposerConfig
+from conceptfusion.perception.masks.base import MaskProposer
+from conceptfusion.perception.masks.rgbd import RGBDProposer
+from conceptfusion.perception.masks.rgbd_config import RGBDProposerConfig
 from conceptfusion.perception.pipeline import frame_features
 from conceptfusion.synthetic import Box, look_at, orbit_poses, render_boxes, tabletop_boxes
 
@@ -36,7 +37,7 @@ def proposer():
 
 @pytest.fixture(scope="module")
 def proposals(frames, proposer):
-    return [proposer.segment(f.rgb_hw3, f.depth_hw, f.K_33) for f in frames]
+    return [proposer.segment(f.rgb, f.depth, f.K) for f in frames]
 
 
 def _iou(masks_rhw, truth_hw):
@@ -47,9 +48,9 @@ def _iou(masks_rhw, truth_hw):
 
 def _table_top_and_floor(frame):
     """Ground-truth pixels of the floor and of the table's top face."""
-    pts = transform_points(frame.cam_to_world_44, backproject(frame.depth_hw, frame.K_33).astype(np.float64))
-    top = (frame.instance_hw == TABLE) & (np.abs(pts[..., 2] - TABLE_TOP_Z) < 1e-3)
-    return frame.instance_hw == FLOOR, top
+    pts = transform_points(frame.cam_to_world, backproject(frame.depth, frame.K).astype(np.float64))
+    top = (frame.segmentation == TABLE) & (np.abs(pts[..., 2] - TABLE_TOP_Z) < 1e-3)
+    return frame.segmentation == FLOOR, top
 
 
 def test_is_a_mask_proposer(proposer):
@@ -62,7 +63,7 @@ def test_every_object_gets_a_proposal_with_iou_at_least_half(frames, proposals):
     for f, (masks, _) in zip(frames, proposals):
         assert masks.dtype == bool and masks.shape[1:] == (H, W)
         for obj in OBJECTS:
-            truth = f.instance_hw == obj
+            truth = f.segmentation == obj
             if truth.sum() >= 50:
                 best.append(_iou(masks, truth).max() if len(masks) else 0.0)
     best = np.array(best)
@@ -78,7 +79,7 @@ def test_proposals_overlap_across_levels(frames, proposals):
         assert len(set(level.tolist())) >= 2
         assert (masks.sum(axis=0) >= 2).any()
         for obj in OBJECTS:
-            truth = f.instance_hw == obj
+            truth = f.segmentation == obj
             if not truth.any():
                 continue
             iou = _iou(masks, truth)
@@ -101,7 +102,7 @@ def test_floor_and_table_top_are_filtered_by_default(frames, proposals):
 def test_background_planes_kept_as_one_mask_each_when_asked(frames):
     proposer = RGBDProposer(keep_background_planes=True)
     f = frames[0]
-    masks = proposer.propose(f.rgb_hw3, f.depth_hw, f.K_33)
+    masks = proposer.propose(f.rgb, f.depth, f.K)
     floor, top = _table_top_and_floor(f)
     assert (_iou(masks, floor) >= 0.95).sum() == 1
     assert (_iou(masks, top) >= 0.95).sum() == 1
@@ -116,29 +117,29 @@ def test_plane_alone_gives_no_mask_and_box_on_plane_gives_the_box():
     pose = look_at((0.9, -0.6, 0.8), (0.0, 0.0, 0.1))
     proposer = RGBDProposer()
     empty = render_boxes([floor], K, pose, H, W)
-    assert proposer.propose(empty.rgb_hw3, empty.depth_hw, K).shape == (0, H, W)
-    assert RGBDProposer(keep_background_planes=True).propose(empty.rgb_hw3, empty.depth_hw, K).shape == (1, H, W)
+    assert proposer.propose(empty.rgb, empty.depth, K).shape == (0, H, W)
+    assert RGBDProposer(keep_background_planes=True).propose(empty.rgb, empty.depth, K).shape == (1, H, W)
     scene = render_boxes([floor, cube], K, pose, H, W)
-    masks = proposer.propose(scene.rgb_hw3, scene.depth_hw, K)
-    assert _iou(masks, scene.instance_hw == 1).max() >= 0.9
+    masks = proposer.propose(scene.rgb, scene.depth, K)
+    assert _iou(masks, scene.segmentation == 1).max() >= 0.9
 
 
 def test_nan_depth_is_invalid_and_handled(frames, proposer):
     f = frames[0]
-    depth = f.depth_hw.copy()
+    depth = f.depth.copy()
     depth[:, : W // 3] = np.nan
     depth[0, -1] = -1.0
-    masks = proposer.propose(f.rgb_hw3, depth, f.K_33)
+    masks = proposer.propose(f.rgb, depth, f.K)
     valid = np.isfinite(depth) & (depth > 0)
     share_valid = (masks & valid).sum(axis=(1, 2)) / masks.sum(axis=(1, 2))
     assert share_valid.min() >= proposer.config.min_valid_fraction
-    seen = [obj for obj in OBJECTS if (f.instance_hw[:, W // 3 + 5:] == obj).sum() >= 100
-            and not (f.instance_hw[:, : W // 3 + 5] == obj).any()]
+    seen = [obj for obj in OBJECTS if (f.segmentation[:, W // 3 + 5:] == obj).sum() >= 100
+            and not (f.segmentation[:, : W // 3 + 5] == obj).any()]
     assert seen
     for obj in seen:
-        assert _iou(masks, f.instance_hw == obj).max() >= 0.5
+        assert _iou(masks, f.segmentation == obj).max() >= 0.5
     nothing = np.full((H, W), np.nan, np.float32)
-    assert proposer.propose(f.rgb_hw3, nothing, f.K_33).shape == (0, H, W)
+    assert proposer.propose(f.rgb, nothing, f.K).shape == (0, H, W)
 
 
 def test_noisy_sensor_depth_with_median_filter(frames):
@@ -147,23 +148,23 @@ def test_noisy_sensor_depth_with_median_filter(frames):
     proposer = RGBDProposer(depth_median_px=5)
     best = []
     for f in frames[:3]:
-        depth = (f.depth_hw * (1.0 + 0.005 * rng.standard_normal(f.depth_hw.shape))).astype(np.float32)
-        rgb = np.clip(f.rgb_hw3 + rng.normal(0.0, 3.0, f.rgb_hw3.shape), 0, 255).astype(np.uint8)
-        masks = proposer.propose(rgb, depth, f.K_33)
-        best += [_iou(masks, f.instance_hw == obj).max() for obj in OBJECTS if (f.instance_hw == obj).sum() >= 100]
+        depth = (f.depth * (1.0 + 0.005 * rng.standard_normal(f.depth.shape))).astype(np.float32)
+        rgb = np.clip(f.rgb + rng.normal(0.0, 3.0, f.rgb.shape), 0, 255).astype(np.uint8)
+        masks = proposer.propose(rgb, depth, f.K)
+        best += [_iou(masks, f.segmentation == obj).max() for obj in OBJECTS if (f.segmentation == obj).sum() >= 100]
     assert np.mean(best) >= 0.75, f"mean best-IoU {np.mean(best):.3f} on noisy depth"
 
 
 def test_deterministic(frames, proposer, proposals):
     f = frames[1]
-    again, level = RGBDProposer().segment(f.rgb_hw3, f.depth_hw.astype(np.float64), f.K_33)
+    again, level = RGBDProposer().segment(f.rgb, f.depth.astype(np.float64), f.K)
     np.testing.assert_array_equal(again, proposals[1][0])
     np.testing.assert_array_equal(level, proposals[1][1])
 
 
 def test_output_sorted_by_area_and_capped(frames):
     f = frames[0]
-    masks = RGBDProposer(max_masks=3).propose(f.rgb_hw3, f.depth_hw, f.K_33)
+    masks = RGBDProposer(max_masks=3).propose(f.rgb, f.depth, f.K)
     assert len(masks) == 3
     areas = masks.sum(axis=(1, 2))
     assert np.all(np.diff(areas) <= 0)
@@ -172,9 +173,9 @@ def test_output_sorted_by_area_and_capped(frames):
 def test_masks_feed_the_feature_pipeline(frames, proposals):
     f = frames[0]
     enc = ColorNameEncoder()
-    feats = frame_features(f.rgb_hw3, proposals[0][0], enc)
+    feats = frame_features(f.rgb, proposals[0][0], enc)
     dense = feats.dense()
-    red = dense[f.instance_hw == 2].mean(axis=0)
+    red = dense[f.segmentation == 2].mean(axis=0)
     names = ["red", "green", "blue", "yellow", "purple", "orange", "brown", "gray"]
     sims = enc.encode_text(names) @ red
     assert names[int(np.argmax(sims))] == "red"

@@ -25,7 +25,7 @@ def _integrate(fmap, pose):
     rng = np.random.default_rng(int(abs(pose[0, 3]) * 1000))
     pal = rng.normal(size=(len(BOXES), fmap.feature_dim)).astype(np.float32)
     pal /= np.linalg.norm(pal, axis=1, keepdims=True)
-    fmap.integrate(f.rgb_hw3, f.depth_hw, K, pose, PixelFeatures(pal, f.instance_hw))
+    fmap.integrate(f.rgb, f.depth, K, pose, PixelFeatures(pal, f.segmentation))
 
 
 def _assert_same(a, b):

@@ -28,8 +28,8 @@ def scene():
     fmap = PointFusionMap(enc.dim)
     for pose in orbit_poses((0.0, 0.0, 0.45), 1.3, 0.8, 8):
         f = render_boxes(BOXES, K, pose, H, W)
-        masks = np.stack([f.instance_hw == i for i in range(len(BOXES)) if np.any(f.instance_hw == i)])
-        fmap.integrate(f.rgb_hw3, f.depth_hw, K, pose, frame_features(f.rgb_hw3, masks, enc))
+        masks = np.stack([f.segmentation == i for i in range(len(BOXES)) if np.any(f.segmentation == i)])
+        fmap.integrate(f.rgb, f.depth, K, pose, frame_features(f.rgb, masks, enc))
     return enc, fmap, enc.encode_text(list(NEGATIVE_PHRASES))
 
 

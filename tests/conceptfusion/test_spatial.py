@@ -352,7 +352,7 @@ def test_lookup_table_has_the_eight_paper_names():
 
 
 def test_unknown_comparator_names_suggest_the_nearest():
-    with pytest.raises(ValueError, match=r"unknown spatial comparator 'isToTheRigt'; did you mean isToTheRight"):
+    with pytest.raises(ValueError, match=r"unknown spatial comparator 'isToTheRigt'; did you mean 'isToTheRight'"):
         get_comparator("isToTheRigt")
     with pytest.raises(ValueError, match=r"valid: howFar, isToTheRight"):
         get_comparator("teleport")

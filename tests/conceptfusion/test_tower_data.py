@@ -113,8 +113,9 @@ def test_rendered_views_give_labelled_crops_of_the_right_objects():
     views = list(random_tabletop_views([5], 2, rng, ViewConfig(width=160, height=120)))
     assert len(views) == 2
     v = views[0]
-    assert v.rgb.shape == (120, 160, 3) and v.rgb.dtype == np.uint8 and v.depth.shape == (120, 160)
-    assert v.segmentation.max() < len(v.object_names) and (v.segmentation >= 0).any()
+    f = v.frame
+    assert f.rgb.shape == (120, 160, 3) and f.rgb.dtype == np.uint8 and f.depth.shape == (120, 160)
+    assert f.segmentation.max() < len(v.object_names) and (f.segmentation >= 0).any()
     classes = instance_classes(list(COLORS), {a.category: a.phrases for a in ASSETS.values()})
     classes += [BACKGROUND_CLASS, SCENE_CLASS]
     data = build_crop_data(views, classes, rng, config=CropConfig(min_area_px=20))

@@ -33,4 +33,4 @@ def test_default_demo_finds_every_object_and_not_the_absent_one(tmp_path, capsys
 
 def test_demo_with_an_unknown_encoder_says_which_exist(tmp_path, capsys):
     assert main(["demo", "--encoder", "embeded", "--out", str(tmp_path)]) == 2
-    assert "did you mean embedded" in capsys.readouterr().err
+    assert "did you mean 'embedded'" in capsys.readouterr().err

@@ -2,6 +2,8 @@
 
 from __future__ import annotations
 
+import json
+
 import numpy as np
 import pytest
 
@@ -9,7 +11,8 @@ from harness.maps.ablation import segmentation_scores
 from harness.maps.query import iou
 from harness.maps.scan import load_shipped_scene, point_labels, scan_scene
 from harness.maps.spatial import QUESTION_TYPES, distance_ok, generate_questions
-from harness.maps.suites import MapJob, map_suite_jobs, run_map_job
+from harness.runner.backends import run_jobs
+from harness.runner.map_jobs import MapJob, map_suite_jobs, run_map_job
 from harness.runner.results import record_key
 from harness.runner.run import RunConfig
 
@@ -107,3 +110,32 @@ def test_jobs_per_suite_and_bad_names():
 def test_a_broken_job_becomes_a_failed_record():
     (rec,) = run_map_job(_job("query", "conceptfusion", "color", "tabletop-9999"))
     assert rec["status"] == "failed" and "no shipped scene 'tabletop-9999'" in rec["error"]
+
+
+def _outcome(rec: dict) -> tuple:
+    """A record without what depends on where or when it ran."""
+    return tuple(json.dumps(rec[k], sort_keys=True) for k in ("suite", "task", "agent", "agent_kwargs", "encoder", "episode_id",
+                                                               "seed", "status", "metrics", "extras", "category"))
+
+
+def test_map_jobs_on_the_process_backend_give_the_serial_records_and_heatmaps(tmp_path):
+    cfg = RunConfig(suites=("query",), encoder="color", limit=1, agent_kwargs={"frames": 4, "width": 64, "height": 48})
+    jobs = map_suite_jobs("query", cfg, "r", out_dir=tmp_path / "serial") + map_suite_jobs("spatial", cfg, "r")[:2]
+    pool_jobs = map_suite_jobs("query", cfg, "r", out_dir=tmp_path / "pool") + map_suite_jobs("spatial", cfg, "r")[:2]
+    assert pool_jobs[0].out_dir == str((tmp_path / "pool").resolve())  # absolute: any worker writes to the run folder
+    serial = sorted(map(_outcome, run_jobs(jobs, backend="serial")))
+    pool = sorted(map(_outcome, run_jobs(pool_jobs, backend="process", workers=2)))
+    assert pool == serial and len(pool) == 3
+    assert all(json.loads(o[7]) == "ok" for o in pool)
+    name = json.loads(next(o for o in pool if json.loads(o[0]) == "query")[9])["heatmap_npz"]
+    assert (tmp_path / "serial" / name).exists() and (tmp_path / "pool" / name).exists()
+
+
+def test_a_map_job_past_its_timeout_is_recorded_and_the_run_goes_on():
+    cfg = RunConfig(suites=("query",), encoder="color", limit=1, agent_kwargs={"frames": 4, "width": 64, "height": 48})
+    (job,) = map_suite_jobs("query", cfg, "r")
+    assert job.timeout_s == 600.0  # the suite's per-job limit
+    slow = MapJob(**{**job.__dict__, "timeout_s": 0.01})
+    (rec,) = run_jobs([slow], backend="process", workers=1)
+    assert rec["status"] == "timeout" and "exceeded" in rec["error"] and record_key(rec) == record_key(job.key_record())
+    assert rec["task"] == "map_query"

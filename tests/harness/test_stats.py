@@ -119,7 +119,7 @@ def test_paired_comparison_errors():
     recs = [_rec("a", "e0", True), _rec("b", "e1", False)]
     with pytest.raises(ValueError, match="no episodes pair up"):
         paired_comparison(recs, "a", "b")
-    with pytest.raises(ValueError, match=r"no records of agent 'aa'.*did you mean \['a'\]"):
+    with pytest.raises(ValueError, match=r"no records of agent 'aa'.*did you mean 'a'\?"):
         paired_comparison(recs, "aa", "b")
     recs = [_rec("a", "e0", True), _rec("a", "e0", True, encoder="other"), _rec("b", "e0", False)]
     with pytest.raises(ValueError, match="several encoders"):

@@ -150,7 +150,7 @@ def test_unknown_cells_block_when_asked():
 
 def test_bad_input_raises():
     grid = _wall_grid()
-    with pytest.raises(UnknownPlannerError, match="did you mean rrtconnect"):
+    with pytest.raises(UnknownPlannerError, match="did you mean 'rrtconnect'"):
         BasePlannerConfig(planner="rrtconect")
     with pytest.raises(ValueError, match="finite"):
         plan_base_path(grid, [np.nan, 1.0], [3.0, 1.0])

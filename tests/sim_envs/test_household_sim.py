@@ -15,7 +15,8 @@ from sim_envs.mujoco.scene import build_mjcf, build_mujoco, split_labels
 from sim_envs.scenes.format import load_scene
 from sim_envs.scenes.gen_household import generate_household
 from sim_envs.scenes.graph import furniture_aabbs, scene_graph
-from sim_envs.envs.scene_scan import SceneScanEnv, room_sweep_trajectory
+from sim_envs.envs.scene_scan import SceneScanEnv
+from sim_envs.scenes.trajectories import room_sweep_trajectory
 
 W, H = 160, 120
 

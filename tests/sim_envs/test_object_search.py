@@ -7,7 +7,8 @@ import pytest
 from gymnasium.utils.env_checker import check_env
 
 from sim_envs.scenes.episodes import Episode, Goal
-from sim_envs.envs.object_search import ObjectSearchEnv, box_distance_xy, geodesic_to_goal
+from planners.geodesic import geodesic_to_goal
+from sim_envs.envs.object_search import ObjectSearchEnv, box_distance_xy
 from sim_envs.scenes.search_episodes import default_search_episodes
 
 
@@ -74,7 +75,7 @@ def test_walls_stop_the_base(env, episodes):
 def test_success_and_spl_when_stopping_next_to_the_goal(env, episodes):
     ep = episodes[0]
     env.reset(options={"episode": ep})
-    lo, hi = env._goal_box[0, :2], env._goal_box[1, :2]
+    lo, hi = env.goal_box[0, :2], env.goal_box[1, :2]
     # Put the base at a free cell within 0.8 m of the goal box, then stop.
     cx, cy = env._occ.centres()
     d = np.hypot(np.maximum(np.maximum(lo[0] - cx, 0), cx - hi[0]), np.maximum(np.maximum(lo[1] - cy, 0), cy - hi[1]))

@@ -9,17 +9,14 @@ proposing. The pixel graph's weights come from :mod:`conceptfusion.perception.ma
 from __future__ import annotations
 
 from dataclasses import dataclass
-from typing import TYPE_CHECKING
 
 import numpy as np
 from numba import njit
 from scipy.sparse import coo_matrix
 from scipy.sparse.csgraph import connected_components
 
-from conceptfusion.perception.masks.registry import empty_masks
-
-if TYPE_CHECKING:
-    from conceptfusion.perception.masks.rgbd import RGBDProposerConfig
+from conceptfusion.perception.masks.base import empty_masks
+from conceptfusion.perception.masks.rgbd_config import RGBDProposerConfig
 
 __all__ = ["felzenszwalb", "merge_levels", "select_regions"]
 
@@ -213,7 +210,7 @@ def _planes_from_moments(mom):
     return mean, vec[:, :, 0], np.clip(eig, 0.0, None)
 
 
-def select_regions(labels, counts, pts, valid, cfg: "RGBDProposerConfig", h: int, w: int):
+def select_regions(labels, counts, pts, valid, cfg: RGBDProposerConfig, h: int, w: int):
     """Filter the regions of every level and build the masks (the rules are described in
     :mod:`conceptfusion.perception.masks.rgbd`).
 

@@ -19,10 +19,10 @@ from pathlib import Path
 
 import numpy as np
 
-from conceptfusion.errors import ConceptFusionError, MissingDependencyError
-from conceptfusion.perception.masks.registry import check_frame, empty_masks
+from conceptfusion.errors import CheckpointError, MissingDependencyError
+from conceptfusion.perception.masks.base import check_frame, empty_masks
 
-__all__ = ["SamConfig", "SamProposer", "CheckpointError", "SAM_INSTALL_HINT"]
+__all__ = ["SamConfig", "SamProposer", "SAM_INSTALL_HINT", "check_checkpoint", "infer_model_type"]
 
 log = logging.getLogger(__name__)
 
@@ -35,10 +35,6 @@ SAM_INSTALL_HINT = (
 _MODEL_TYPES = ("vit_h", "vit_l", "vit_b", "vit_t")
 # torch.save's zip container, and a bare pickle (protocol 2+) of older torch versions.
 _CHECKPOINT_MAGIC = (b"PK\x03\x04", b"\x80")
-
-
-class CheckpointError(ConceptFusionError, ValueError):
-    """A checkpoint path is missing, not a file, or not a readable PyTorch checkpoint."""
 
 
 @dataclass(frozen=True)

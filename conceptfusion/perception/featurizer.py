@@ -1,0 +1,290 @@
+"""Perception as one object: a posed RGB-D frame in, pixel-aligned concept features out.
+
+A map is built with a :class:`FrameFeaturizer`, never with a mode flag. Two implementations:
+
+* :class:`PerceivedFeaturizer`: class-agnostic mask proposals from the frame (a
+  :class:`~conceptfusion.perception.masks.base.MaskProposer`) and crop/frame embeddings from an
+  encoder (the embedded tower, real CLIP, ...), mixed by the paper's eqs. 3-6 in one of the
+  feature modes of :mod:`conceptfusion.perception.features`. It is privileged only when its
+  proposer is (``"gt"``, ground-truth masks).
+* :class:`OracleFeaturizer` (**privileged**): each pixel gets the text embedding of its
+  ground-truth object's name (:class:`~conceptfusion.perception.oracle.OracleFeatures`); it
+  reads ``frame.segmentation`` and needs the names of the segmentation ids at :meth:`reset`.
+
+Both are built from a :class:`PerceptionSpec` (or its command-line string) by the one factory
+:func:`make_featurizer`, which loads each encoder once per process. The spec's string form is
+exactly the encoder spec the harness stores in its records (``"embedded"``, ``"oracle"``,
+``"hf:openai/clip-vit-base-patch32"``).
+"""
+
+from __future__ import annotations
+
+import functools
+from dataclasses import dataclass
+from typing import Mapping, Protocol, Sequence, runtime_checkable
+
+import numpy as np
+
+from conceptfusion.errors import UnknownNameError
+from conceptfusion.frames import RGBDFrame
+from conceptfusion.names import unknown_name_error
+from conceptfusion.perception.features import PixelFeatures, check_mode
+from conceptfusion.perception.masks.registry import PROPOSERS, make_proposer
+from conceptfusion.perception.oracle import OracleFeatures
+from conceptfusion.perception.pipeline import frame_features
+from conceptfusion.perception.registry import DEFAULT_ENCODER, ENCODERS, make_encoder
+
+__all__ = [
+    "ORACLE",
+    "ORACLE_MIN_SCORE",
+    "PerceptionSpec",
+    "FrameFeaturizer",
+    "PerceivedFeaturizer",
+    "OracleFeaturizer",
+    "make_featurizer",
+    "load_encoder",
+    "perception_names",
+]
+
+ORACLE = "oracle"
+"""The encoder name of privileged oracle perception (not an encoder of the registry)."""
+
+ORACLE_MIN_SCORE = 0.85
+"""Score floor with oracle features: exact names score >= 0.9 against their MiniLM text
+embedding, near-miss names (another colour, another kind) <= 0.75."""
+
+_ORACLE_TEXT_ENCODER = "minilm-text"
+"""The registry encoder whose text embeddings label the oracle's segments."""
+
+
+def perception_names() -> list[str]:
+    """Every valid encoder name of a :class:`PerceptionSpec`: the registry's and ``"oracle"``."""
+    return sorted([*ENCODERS, ORACLE])
+
+
+@dataclass(frozen=True)
+class PerceptionSpec:
+    """Which perception a map is built with; its string form is the ``encoder`` spec.
+
+    Build one from the command line with :meth:`parse` (names checked, nothing loaded) and turn
+    it into a featurizer with :func:`make_featurizer`.
+    """
+
+    encoder: str = DEFAULT_ENCODER
+    """Encoder registry spec (``"embedded"``, ``"embedded:DIR"``, ``"hf:HUB_ID"``,
+    ``"onnx:DIR"``, ``"color"``, ...; see :mod:`conceptfusion.perception.registry`) or
+    ``"oracle"`` (privileged ground-truth features). Stored in records as given."""
+    proposer: str = "rgbd"
+    """Mask proposer registry spec (``"rgbd"``, ``"sam:CKPT"``, ``"gt"``); unused by the oracle."""
+    mode: str = "full"
+    """Pixel-feature variant (:data:`conceptfusion.perception.features.FEATURE_MODES`)."""
+    uniqueness: bool = True
+    """Use the uniqueness term of eq. 5."""
+
+    def __post_init__(self) -> None:
+        if not isinstance(self.encoder, str):
+            raise TypeError(f"encoder: expected a spec string such as 'embedded', got {type(self.encoder).__name__}")
+        if not isinstance(self.proposer, str):
+            raise TypeError(f"proposer: expected a spec string such as 'rgbd', got {type(self.proposer).__name__}")
+        check_mode(self.mode)
+        if not isinstance(self.uniqueness, bool):
+            raise TypeError(f"uniqueness: expected a bool, got {type(self.uniqueness).__name__}")
+
+    def __str__(self) -> str:
+        return self.encoder
+
+    @property
+    def encoder_name(self) -> str:
+        """The encoder's registry name (the spec before ``:``, lower case), or ``"oracle"``."""
+        return self.encoder.strip().partition(":")[0].strip().lower()
+
+    @classmethod
+    def parse(cls, text: "str | PerceptionSpec", *, proposer: str = "rgbd", mode: str = "full",
+              uniqueness: bool = True) -> "PerceptionSpec":
+        """The spec of a command-line encoder string (a spec is checked and returned as is);
+        checks names only, loads no weights.
+
+        Raises:
+            UnknownNameError: unknown encoder or proposer name (naming the nearest valid ones).
+            ValueError: ``"oracle:..."`` (the oracle takes no argument) or an unknown mode.
+            TypeError: ``text`` is not a string.
+        """
+        if isinstance(text, PerceptionSpec):
+            return text.checked()
+        if not isinstance(text, str):
+            raise TypeError(f"encoder spec: expected a string such as 'embedded' or 'hf:openai/clip-vit-base-patch32', "
+                            f"got {type(text).__name__}")
+        return cls(encoder=text, proposer=proposer, mode=mode, uniqueness=uniqueness).checked()
+
+    def checked(self) -> "PerceptionSpec":
+        """This spec, once its encoder and proposer names are known ones (see :meth:`parse`)."""
+        text = self.encoder
+        _, sep, _ = text.strip().partition(":")
+        if self.encoder_name not in perception_names():
+            err = unknown_name_error("encoder", self.encoder_name, perception_names())
+            if "/" in text and not sep:
+                err = UnknownNameError(f"{err} (a model needs a prefix: hf:{text.strip()} for Hugging Face, "
+                                       f"onnx:{text.strip()} for an ONNX folder)")
+            raise err
+        if self.encoder_name == ORACLE and sep:
+            raise ValueError(f"encoder 'oracle' takes no argument, got {text!r}")
+        prop = self.proposer.strip().partition(":")[0].lower()
+        if prop not in PROPOSERS:
+            raise unknown_name_error("mask proposer", prop, sorted(PROPOSERS))
+        return self
+
+
+@runtime_checkable
+class FrameFeaturizer(Protocol):
+    """One posed RGB-D frame to pixel-aligned features, and texts to the same space."""
+
+    privileged: bool
+    """True when the features read ground truth (the oracle, ground-truth masks); results
+    built on them must say so."""
+    score_floor: float | None
+    """The smallest median cosine score of a region that counts as found for a text query
+    (calibrated per encoder; None: no floor)."""
+
+    @property
+    def dim(self) -> int:
+        """Feature dimension ``d``."""
+        ...
+
+    @property
+    def encoder(self):
+        """The underlying encoder (``encode_text``; ``encode_image`` too unless text-only),
+        for image and click queries against the map."""
+        ...
+
+    def encode_text(self, texts: Sequence[str]) -> np.ndarray:
+        """Unit embeddings of ``texts`` in the features' space. Shape: (n,) -> (n, d) float32."""
+        ...
+
+    def reset(self, label_names: Mapping[int, str] | None = None) -> None:
+        """Start a new scene; ``label_names`` (segmentation id -> name) is what the oracle needs."""
+        ...
+
+    def features(self, frame: RGBDFrame) -> PixelFeatures:
+        """Features of one frame. Shape: frame of (H, W) -> PixelFeatures of (H, W)."""
+        ...
+
+
+def _score_floor(encoder) -> float | None:
+    """The calibrated floor an encoder ships in ``info["metrics"]["score_floor"]`` (or None)."""
+    return getattr(encoder, "info", {}).get("metrics", {}).get("score_floor") if hasattr(encoder, "info") else None
+
+
+class _EncoderBacked:
+    """What both featurizers share: the feature space is their encoder's (``dim``,
+    ``encode_text``), and the encoder answers image and click queries."""
+
+    _encoder = None
+
+    @property
+    def dim(self) -> int:
+        return int(self._encoder.dim)
+
+    @property
+    def encoder(self):
+        return self._encoder
+
+    def encode_text(self, texts: Sequence[str]) -> np.ndarray:
+        return self._encoder.encode_text(texts)
+
+
+class PerceivedFeaturizer(_EncoderBacked):
+    """Mask proposals + encoder embeddings mixed by eqs. 3-6 (what a robot can perceive).
+
+    Args:
+        encoder: image + text encoder (``encode_image``, ``encode_text``, ``dim``).
+        proposer: mask proposer (``propose(rgb, depth, K)``; a privileged one also gets
+            ``segmentation_hw``).
+        mode: pixel-feature variant (``"full"``, ``"global"``, ``"local"``).
+        uniqueness: use eq. 5's uniqueness term.
+        score_floor: the text-query floor; default: the encoder's calibrated one
+            (``encoder.info["metrics"]["score_floor"]``), else None.
+    """
+
+    def __init__(self, encoder, proposer, *, mode: str = "full", uniqueness: bool = True,
+                 score_floor: float | None = ...) -> None:  # type: ignore[assignment]
+        if proposer is None:
+            raise ValueError("PerceivedFeaturizer: expected a mask proposer (make_proposer('rgbd'); "
+                             "or make_featurizer('oracle') for ground-truth features)")
+        self._encoder, self.proposer = encoder, proposer
+        self.mode, self.uniqueness = check_mode(mode), bool(uniqueness)
+        self.score_floor = _score_floor(encoder) if score_floor is ... else score_floor
+        self.privileged = bool(getattr(proposer, "privileged", False))
+
+    def reset(self, label_names: Mapping[int, str] | None = None) -> None:
+        """Nothing to forget (the names are for the oracle only)."""
+
+    def features(self, frame: RGBDFrame) -> PixelFeatures:
+        """Masks from the proposer, then :func:`~conceptfusion.perception.pipeline.frame_features`.
+
+        Shape:
+            frame (H, W) -> PixelFeatures (H, W).
+        """
+        if self.privileged:
+            if frame.segmentation is None:
+                raise ValueError("PerceivedFeaturizer: the ground-truth proposer needs the frame's segmentation")
+            masks = self.proposer.propose(frame.rgb, frame.depth, frame.K, segmentation_hw=frame.segmentation)
+        else:
+            masks = self.proposer.propose(frame.rgb, frame.depth, frame.K)
+        return frame_features(frame.rgb, masks, self._encoder, uniqueness=self.uniqueness, mode=self.mode)
+
+
+class OracleFeaturizer(_EncoderBacked):
+    """Privileged features: each segment labelled with its name's text embedding.
+
+    Args:
+        text_encoder: embeds the names and the queries (``encode_text``, ``dim``).
+        score_floor: the text-query floor (default :data:`ORACLE_MIN_SCORE`).
+    """
+
+    privileged = True
+
+    def __init__(self, text_encoder, *, score_floor: float | None = ORACLE_MIN_SCORE) -> None:
+        self._encoder = text_encoder
+        self.score_floor = score_floor
+        self._features: OracleFeatures | None = None
+
+    def reset(self, label_names: Mapping[int, str] | None = None) -> None:
+        """Embed the names of the segmentation ids of the new scene (required)."""
+        if not label_names:
+            raise ValueError("OracleFeaturizer.reset: expected object names by segmentation id (privileged oracle features)")
+        self._features = OracleFeatures(self._encoder, dict(label_names))
+
+    def features(self, frame: RGBDFrame) -> PixelFeatures:
+        """Features from ``frame.segmentation`` (required).
+
+        Shape:
+            frame (H, W) with segmentation (H, W) int -> PixelFeatures (H, W).
+        """
+        if self._features is None:
+            raise RuntimeError("OracleFeaturizer: call reset(label_names) before features()")
+        if frame.segmentation is None:
+            raise ValueError("OracleFeaturizer.features: expected the frame's segmentation (privileged)")
+        return self._features(frame.segmentation)
+
+
+@functools.lru_cache(maxsize=4)
+def load_encoder(spec: str):
+    """The encoder of a registry spec, loaded once per process (so map suites load it once).
+
+    Raises what :func:`~conceptfusion.perception.registry.make_encoder` raises (nothing is cached then).
+    """
+    return make_encoder(spec)
+
+
+def make_featurizer(spec: "PerceptionSpec | str" = DEFAULT_ENCODER) -> FrameFeaturizer:
+    """The featurizer a spec names; its encoder is loaded once per process (:func:`load_encoder`).
+
+    Raises:
+        UnknownNameError: unknown encoder or proposer name (naming the nearest valid ones).
+        FileNotFoundError, CheckpointError, MissingDependencyError: from loading the encoder.
+    """
+    spec = PerceptionSpec.parse(spec)
+    if spec.encoder_name == ORACLE:
+        return OracleFeaturizer(load_encoder(_ORACLE_TEXT_ENCODER))
+    return PerceivedFeaturizer(load_encoder(spec.encoder), make_proposer(spec.proposer),
+                               mode=spec.mode, uniqueness=spec.uniqueness)

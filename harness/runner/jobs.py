@@ -1,0 +1,72 @@
+"""The one job model: what a backend runs, whatever the suite.
+
+A :class:`Job` is a picklable, self-contained unit of work (one episode of an agent, one map
+scene of a map suite) that knows its record key, how long it may take, and how to run itself
+into result records (see :mod:`harness.runner.results`). The backends
+(:mod:`harness.runner.backends`) only call :meth:`Job.run` and, when a worker times out or
+dies, :meth:`Job.failure_record`; they never look at what kind of job it is.
+
+Implemented by :class:`harness.runner.tasks.EpisodeJob` and :class:`harness.maps.suites.MapJob`.
+This module imports nothing of the harness but :mod:`harness.runner.results`.
+"""
+
+from __future__ import annotations
+
+import importlib
+from typing import Iterable, Protocol, runtime_checkable
+
+from harness.runner.results import make_record
+
+__all__ = ["Job", "job_record", "import_plugins"]
+
+
+@runtime_checkable
+class Job(Protocol):
+    """One unit of work for a backend: picklable, deterministic, independent of other jobs."""
+
+    run_id: str
+    suite: str
+    timeout_s: float
+    """Wall-clock limit; past it the process and Ray backends stop the job and record ``timeout``."""
+    plugins: tuple[str, ...]
+    """Modules the job imports in its worker before it runs (they register user agents)."""
+
+    @property
+    def task(self) -> str:
+        """The ``task`` field of the job's records."""
+
+    @property
+    def label(self) -> str:
+        """A short human-readable name (progress lines, logs)."""
+
+    def key_record(self) -> dict:
+        """The key fields of the job's record (``suite, agent, agent_kwargs, encoder, episode_id,
+        seed``), as :func:`harness.runner.results.record_key` reads them; resume skips a job whose
+        key is already stored."""
+
+    def run(self) -> list[dict]:
+        """Run the job; its result records. Never raises for what goes wrong inside the job:
+        that becomes a record with ``status="failed"`` and the error."""
+
+    def failure_record(self, status: str, error: str, wall_s: float) -> dict:
+        """The record of the job when its worker timed out (``status="timeout"``) or died
+        (``"failed"``) before it returned."""
+
+
+def job_record(job: Job, *, status: str, error: str | None = None, metrics: dict | None = None,
+               timings: dict | None = None, category: str | None = None, extras: dict | None = None) -> dict:
+    """A validated results record for ``job``: its key fields, ``run_id`` and ``task``, plus the
+    given outcome (see :func:`harness.runner.results.make_record`)."""
+    return make_record(
+        run_id=job.run_id, task=job.task, **job.key_record(), status=status, error=error, metrics=metrics or {},
+        timings=timings or {}, category=category, extras=extras or {},
+    )
+
+
+def import_plugins(plugins: Iterable[str] | None) -> None:
+    """Import the modules that register user agents; ``ValueError`` naming the one that fails."""
+    for name in plugins or ():
+        try:
+            importlib.import_module(name)
+        except ImportError as exc:
+            raise ValueError(f"--import {name!r}: cannot import it: {exc}") from exc
