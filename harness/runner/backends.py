@@ -10,7 +10,8 @@ their keys). Results do not depend on the backend: a job is a pure function of i
   ``spawn`` method so no simulator or GL state is inherited. A job that runs past its
   ``timeout_s`` has its worker killed and is recorded as ``timeout``; a worker that dies (a crash
   in native code) is recorded as ``failed`` with its exit code (``job.failure_record``). Both
-  are replaced and the run goes on;
+  are replaced and the run goes on. Each worker gets its share of the cores
+  (:func:`~harness.runner.jobs.worker_thread_share`, used by the map jobs);
 * ``ray``: ``ray.remote`` tasks on a cluster (``address="auto"`` or ``"ray://host:10001"``) or a
   local Ray instance (``address=None``); timeouts cancel the task. Needs the ``ray`` extra.
 """
@@ -26,7 +27,7 @@ from typing import Iterable, Iterator
 
 from conceptfusion.errors import ConceptFusionError, HarnessError
 from conceptfusion.names import did_you_mean
-from harness.runner.jobs import Job
+from harness.runner.jobs import WORKER_THREADS_ENV, Job
 
 __all__ = ["BACKENDS", "run_jobs", "RayUnavailableError"]
 
@@ -48,9 +49,11 @@ def _serial(jobs: list[Job]) -> Iterator[dict]:
         yield from _run_job(job)
 
 
-def _worker_main(inbox, outbox) -> None:
-    """Worker loop: run jobs until told to stop (``None``)."""
+def _worker_main(inbox, outbox, threads: int) -> None:
+    """Worker loop: run jobs until told to stop (``None``); ``threads`` is the worker's share of
+    the cores, for the jobs that limit their threads to it."""
     signal.signal(signal.SIGINT, signal.SIG_IGN)  # the parent handles Ctrl-C
+    os.environ[WORKER_THREADS_ENV] = str(threads)
     while True:
         item = inbox.get()
         if item is None:
@@ -60,9 +63,9 @@ def _worker_main(inbox, outbox) -> None:
 
 
 class _Worker:
-    def __init__(self, ctx, outbox) -> None:
+    def __init__(self, ctx, outbox, threads: int) -> None:
         self.inbox = ctx.Queue()
-        self.proc = ctx.Process(target=_worker_main, args=(self.inbox, outbox), daemon=True)
+        self.proc = ctx.Process(target=_worker_main, args=(self.inbox, outbox, threads), daemon=True)
         self.proc.start()
         self.job: tuple[int, Job] | None = None
         self.started = 0.0
@@ -81,7 +84,9 @@ def _process_pool(jobs: list[Job], workers: int) -> Iterator[dict]:
     ctx = mp.get_context("spawn")
     outbox = ctx.Queue()
     pending = list(enumerate(jobs))[::-1]
-    pool = [_Worker(ctx, outbox) for _ in range(max(1, min(workers, len(jobs))))]
+    size = max(1, min(workers, len(jobs)))
+    threads = max(1, (os.cpu_count() or 1) // size)
+    pool = [_Worker(ctx, outbox, threads) for _ in range(size)]
     done = 0
     try:
         while done < len(jobs):
@@ -106,12 +111,12 @@ def _process_pool(jobs: list[Job], workers: int) -> Iterator[dict]:
                 elapsed = now - w.started
                 if elapsed > job.timeout_s:
                     w.kill()
-                    pool[k] = _Worker(ctx, outbox)
+                    pool[k] = _Worker(ctx, outbox, threads)
                     done += 1
                     yield job.failure_record("timeout", f"episode exceeded {job.timeout_s:.0f} s; its worker was stopped", elapsed)
                 elif not w.proc.is_alive():
                     code = w.proc.exitcode
-                    pool[k] = _Worker(ctx, outbox)
+                    pool[k] = _Worker(ctx, outbox, threads)
                     done += 1
                     yield job.failure_record("failed", f"worker process died (exit code {code}) during the episode", elapsed)
     finally:

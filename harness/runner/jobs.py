@@ -6,18 +6,23 @@ into result records (see :mod:`harness.runner.results`). The backends
 (:mod:`harness.runner.backends`) only call :meth:`Job.run` and, when a worker times out or
 dies, :meth:`Job.failure_record`; they never look at what kind of job it is.
 
-Implemented by :class:`harness.runner.tasks.EpisodeJob` and :class:`harness.maps.suites.MapJob`.
+Implemented by :class:`harness.runner.tasks.EpisodeJob` and :class:`harness.runner.map_jobs.MapJob`.
 This module imports nothing of the harness but :mod:`harness.runner.results`.
 """
 
 from __future__ import annotations
 
+import contextlib
 import importlib
-from typing import Iterable, Protocol, runtime_checkable
+import os
+from typing import Iterable, Iterator, Protocol, runtime_checkable
 
 from harness.runner.results import make_record
 
-__all__ = ["Job", "job_record", "import_plugins"]
+__all__ = ["Job", "job_record", "import_plugins", "WORKER_THREADS_ENV", "worker_thread_share"]
+
+WORKER_THREADS_ENV = "CF_WORKER_THREADS"
+"""Set by the process backend in each worker: that worker's share of the CPU cores."""
 
 
 @runtime_checkable
@@ -70,3 +75,29 @@ def import_plugins(plugins: Iterable[str] | None) -> None:
             importlib.import_module(name)
         except ImportError as exc:
             raise ValueError(f"--import {name!r}: cannot import it: {exc}") from exc
+
+
+@contextlib.contextmanager
+def worker_thread_share() -> Iterator[None]:
+    """Run the block with torch's intra-op threads limited to this worker's share of the cores
+    (:data:`WORKER_THREADS_ENV`, set by the process backend), then restore them.
+
+    Without it, every worker of a pool runs torch on all cores and they fight over them. Only jobs
+    whose results do not depend on torch's thread count use it: the map suites' records are the
+    same with one thread or many, while a search episode's path can move in its last digits
+    (text embeddings differ in their last bits), so episode jobs keep torch's default.
+    """
+    share = os.environ.get(WORKER_THREADS_ENV)
+    try:
+        import torch
+    except ImportError:  # no torch, nothing to share
+        torch = None
+    if not share or torch is None:
+        yield
+        return
+    before = torch.get_num_threads()
+    torch.set_num_threads(max(1, int(share)))
+    try:
+        yield
+    finally:
+        torch.set_num_threads(before)

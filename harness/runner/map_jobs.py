@@ -15,7 +15,7 @@ from dataclasses import dataclass, field
 from pathlib import Path
 
 from harness.maps.suites import MapCase, get_map_suite
-from harness.runner.jobs import job_record
+from harness.runner.jobs import job_record, worker_thread_share
 from harness.runner.suites import get_suite
 
 __all__ = ["MapJob", "map_suite_jobs", "run_map_job"]
@@ -67,8 +67,10 @@ class MapJob:
                 "episode_id": self.episode_id, "seed": self.seed}
 
     def run(self) -> list[dict]:
-        """Run the job: its one record (see :func:`run_map_job`)."""
-        return run_map_job(self)
+        """Run the job: its one record (see :func:`run_map_job`), with torch on this worker's
+        share of the cores (:func:`~harness.runner.jobs.worker_thread_share`)."""
+        with worker_thread_share():
+            return run_map_job(self)
 
     def failure_record(self, status: str, error: str, wall_s: float) -> dict:
         """The record of the job when its worker timed out or died."""
