@@ -28,7 +28,7 @@ random-walker      object_search        no          random velocities
 from __future__ import annotations
 
 from agents.concept_map import ConceptMapper, MapperConfig
-from agents.spec import AgentSpec, register_agent
+from agents.spec import AgentSpec, Option, register_agent
 from conceptfusion.perception.featurizer import FrameFeaturizer, PerceptionSpec, make_featurizer
 
 __all__ = ["make_mapper"]
@@ -78,12 +78,26 @@ def _frame_searcher(encoder: str = "embedded", proposer: str = "rgbd"):
     return FrameSearcher(make_mapper(encoder, proposer, persistent=False))
 
 
-_PERCEPTION = {"encoder": (str, "embedded"), "proposer": (str, "rgbd")}
+def _known_encoder(spec: str) -> bool:
+    PerceptionSpec.parse(spec)  # UnknownNameError naming the nearest encoders
+    return True
+
+
+def _known_proposer(spec: str) -> bool:
+    PerceptionSpec.parse("color", proposer=spec)  # UnknownNameError naming the nearest proposers
+    return True
+
+
+_PERCEPTION = {
+    "encoder": Option(str, "embedded", _known_encoder, "an encoder spec, see cfharness list"),
+    "proposer": Option(str, "rgbd", _known_proposer, "a mask proposer name"),
+}
+_SEED = Option.at_least(int, 0, 0)
 
 register_agent(AgentSpec(
     "map-pusher", _map_pusher, "tabletop_rearrange",
     "ConceptFusion map from an orbit scan; pushes each named object's median across the line; re-checks and retries",
-    {**_PERCEPTION, "scan": (bool, True)}, uses_map=True,
+    {**_PERCEPTION, "scan": Option(bool, True)}, uses_map=True,
 ))
 register_agent(AgentSpec(
     "frame-pusher", _frame_pusher, "tabletop_rearrange",
@@ -92,7 +106,7 @@ register_agent(AgentSpec(
 ))
 register_agent(AgentSpec(
     "random-pusher", "agents.baselines:RandomPusher", "tabletop_rearrange",
-    "random straight pushes on the table, random number of pushes", {"seed": (int, 0), "max_pushes": (int, 4)},
+    "random straight pushes on the table, random number of pushes", {"seed": _SEED, "max_pushes": Option.at_least(int, 4, 1)},
 ))
 register_agent(AgentSpec(
     "oracle-pusher", "agents.oracle_push:OraclePushAgent", "tabletop_rearrange",
@@ -105,7 +119,7 @@ register_agent(AgentSpec(
 register_agent(AgentSpec(
     "map-navigator", _map_navigator, "object_search",
     "ConceptFusion map built online; goal query, OMPL path to the goal or a frontier, pure pursuit, stop",
-    {**_PERCEPTION, "seed": (int, 0), "integrate_every": (int, 1)}, uses_map=True,
+    {**_PERCEPTION, "seed": _SEED, "integrate_every": Option.at_least(int, 1, 1)}, uses_map=True,
 ))
 register_agent(AgentSpec(
     "frame-searcher", _frame_searcher, "object_search",
@@ -114,5 +128,5 @@ register_agent(AgentSpec(
 ))
 register_agent(AgentSpec(
     "random-walker", "agents.baselines:RandomWalker", "object_search",
-    "random velocity commands, random stop", {"seed": (int, 0), "p_stop": (float, 0.01)},
+    "random velocity commands, random stop", {"seed": _SEED, "p_stop": Option.at_least(float, 0.01, 0.0, 1.0)},
 ))

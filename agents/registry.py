@@ -58,7 +58,7 @@ def make_agent(name: str, **kwargs: Any) -> Agent:
     factory = resolve_agent(name)
     if name in AGENTS:
         spec = AGENTS[name]
-        agent = factory(**{k: d for k, (_, d) in spec.kwargs.items()} | coerce_kwargs(spec, kwargs))
+        agent = factory(**spec.defaults() | coerce_kwargs(spec, kwargs))
     else:
         agent = factory(**kwargs)
     missing = [a for a in ("reset", "act") if not callable(getattr(agent, a, None))]

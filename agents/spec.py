@@ -13,10 +13,13 @@ import importlib
 from dataclasses import dataclass, field
 from typing import Any, Callable, Protocol, runtime_checkable
 
-from conceptfusion.errors import UnknownNameError
+from conceptfusion.errors import AgentError, UnknownNameError
 from conceptfusion.names import unknown_name_error
 
-__all__ = ["Agent", "AgentSpec", "AGENTS", "register_agent", "agent_names", "coerce_kwargs", "import_factory", "spec_summary"]
+__all__ = [
+    "Agent", "AgentSpec", "Option", "AGENTS", "register_agent", "agent_names", "coerce_kwargs", "check_option", "import_factory",
+    "spec_summary",
+]
 
 
 @runtime_checkable
@@ -34,6 +37,60 @@ class Agent(Protocol):
 
 
 @dataclass(frozen=True)
+class Option:
+    """One keyword option of an agent: its type, default and the values it accepts.
+
+    ``AgentSpec(kwargs=...)`` takes these, or the short forms ``(type, default)`` and
+    ``(type, default, check)``.
+    """
+
+    type: type
+    """``int``, ``float``, ``bool`` or ``str``; command-line strings are converted to it."""
+    default: Any
+    check: Callable[[Any], bool] | None = None
+    """True for an accepted value (after conversion to ``type``); None accepts every value of the
+    type. It may also raise ``ValueError`` with its own message (e.g. naming the nearest names)."""
+    expected: str = ""
+    """What ``check`` accepts, in words (``"an integer >= 1"``), for the error message."""
+
+    @classmethod
+    def at_least(cls, kind: type, default: Any, low: float, high: float | None = None) -> "Option":
+        """A numeric option with ``low <= value`` (and ``value <= high`` when given)."""
+        noun = "an integer" if kind is int else "a number"
+        if high is None:
+            return cls(kind, default, lambda v: v >= low, f"{noun} >= {low}")
+        return cls(kind, default, lambda v: low <= v <= high, f"{noun} in [{low}, {high}]")
+
+    def convert(self, name: str, value: Any) -> Any:
+        """``value`` converted to :attr:`type` and checked; ``name`` starts the error messages.
+
+        Raises:
+            ValueError: a string that does not convert, or a value ``check`` refuses.
+            TypeError: a non-string value of another type.
+        """
+        out = _convert(name, self.type, value)
+        if self.type is float and out != out:
+            raise AgentError(f"{name}: expected {self.expected or 'a number'}, got {value!r}")
+        if self.check is None:
+            return out
+        try:
+            ok = self.check(out)
+        except ValueError as exc:  # a check with its own message (nearest names)
+            raise AgentError(f"{name}: {exc}") from exc
+        if not ok:
+            raise AgentError(f"{name}: expected {self.expected or 'another value'}, got {value!r}")
+        return out
+
+
+def _as_option(key: str, value: Any) -> Option:
+    if isinstance(value, Option):
+        return value
+    if isinstance(value, tuple) and len(value) in (2, 3) and isinstance(value[0], type):
+        return Option(*value)
+    raise TypeError(f"AgentSpec option {key!r}: expected an Option, (type, default) or (type, default, check), got {value!r}")
+
+
+@dataclass(frozen=True)
 class AgentSpec:
     """How to build one agent by name."""
 
@@ -44,12 +101,20 @@ class AgentSpec:
     task: str
     """``"tabletop_rearrange"``, ``"object_search"`` or ``"any"``."""
     description: str
-    kwargs: dict[str, tuple[type, Any]] = field(default_factory=dict)
-    """Keyword name -> (type, default) accepted by the factory."""
+    kwargs: dict[str, Option] = field(default_factory=dict)
+    """Keyword name -> :class:`Option` accepted by the factory (``(type, default)`` and
+    ``(type, default, check)`` tuples are accepted and stored as options)."""
     uses_map: bool = False
     """Builds a ConceptFusion map (map-equipped) or not (map-free baseline)."""
     privileged: bool = False
     """Reads ground truth (oracle policies)."""
+
+    def __post_init__(self) -> None:
+        object.__setattr__(self, "kwargs", {k: _as_option(k, v) for k, v in dict(self.kwargs).items()})
+
+    def defaults(self) -> dict[str, Any]:
+        """Keyword name -> default value."""
+        return {k: o.default for k, o in self.kwargs.items()}
 
 
 AGENTS: dict[str, AgentSpec] = {}
@@ -85,21 +150,30 @@ def _convert(name: str, kind: type, value: Any) -> Any:
             raise ValueError(f"{name}: expected {kind.__name__}, got {value!r}") from None
     if kind is float and isinstance(value, int) and not isinstance(value, bool):
         return float(value)
-    if not isinstance(value, kind):
+    if not isinstance(value, kind) or (isinstance(value, bool) and kind is not bool):
         raise TypeError(f"{name}: expected {kind.__name__}, got {type(value).__name__} {value!r}")
     return value
 
 
+def check_option(spec: AgentSpec, key: str, value: Any) -> Any:
+    """``value`` of option ``key`` of an agent, converted to its declared type and checked
+    against its :class:`Option` (ranges, names).
+
+    Raises:
+        UnknownNameError: the agent has no option ``key`` (naming the nearest one).
+        ValueError, TypeError: a value of the wrong type or out of range.
+    """
+    if key not in spec.kwargs:
+        err = unknown_name_error("option", key, spec.kwargs, n=1, cutoff=0.6,
+                                 listing=f"options: {', '.join(sorted(spec.kwargs)) or 'none'}")
+        raise UnknownNameError(f"agent {spec.name!r}: {err}")
+    return spec.kwargs[key].convert(f"agent {spec.name!r} option {key!r}", value)
+
+
 def coerce_kwargs(spec: AgentSpec, kwargs: dict[str, Any]) -> dict[str, Any]:
-    """Check keyword names against the spec and convert values to their declared types."""
-    out = {}
-    for key, value in kwargs.items():
-        if key not in spec.kwargs:
-            err = unknown_name_error("option", key, spec.kwargs, n=1, cutoff=0.6,
-                                     listing=f"options: {', '.join(sorted(spec.kwargs)) or 'none'}")
-            raise UnknownNameError(f"agent {spec.name!r}: {err}")
-        out[key] = _convert(f"agent {spec.name!r} option {key!r}", spec.kwargs[key][0], value)
-    return out
+    """Check keyword names against the spec, convert values to their declared types and check
+    them (see :func:`check_option`)."""
+    return {key: check_option(spec, key, value) for key, value in kwargs.items()}
 
 
 def import_factory(path: str) -> Callable[..., Agent]:
@@ -125,5 +199,5 @@ def spec_summary(spec: AgentSpec) -> dict[str, Any]:
     """A JSON-friendly description of a spec (for ``--help`` and result records)."""
     d = dataclasses.asdict(spec)
     d["factory"] = spec.factory if isinstance(spec.factory, str) else f"{spec.factory.__module__}:{spec.factory.__qualname__}"
-    d["kwargs"] = {k: {"type": t.__name__, "default": v} for k, (t, v) in spec.kwargs.items()}
+    d["kwargs"] = {k: {"type": o.type.__name__, "default": o.default} for k, o in spec.kwargs.items()}
     return d

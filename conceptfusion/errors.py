@@ -18,11 +18,13 @@ __all__ = [
     "PoseError",
     "MapFormatError",
     "MapVersionError",
+    "MissingFileError",
     "MissingDependencyError",
     "CheckpointError",
     "UnknownNameError",
     "UnknownKeyError",
     "SimError",
+    "SceneFormatError",
     "AgentError",
     "PlannerError",
     "HarnessError",
@@ -53,6 +55,11 @@ class MapVersionError(MapFormatError):
     """A map file was written by a newer format version than this code reads."""
 
 
+class MissingFileError(ConceptFusionError, FileNotFoundError):
+    """An input file (scene, episode set, map, results) or run folder does not exist; the
+    message names the path. Also a ``FileNotFoundError``, as callers have always caught."""
+
+
 class MissingDependencyError(ConceptFusionError, ImportError):
     """An optional dependency is not installed; the message names the extra."""
 
@@ -75,6 +82,21 @@ class UnknownKeyError(UnknownNameError, KeyError):
 
 class SimError(ConceptFusionError, ValueError):
     """Bad input to a simulated scene, episode or environment (:mod:`sim_envs`)."""
+
+
+class SimTypeError(SimError, TypeError):
+    """A :class:`SimError` for a value of the wrong type (a list where a dict is expected, a
+    float where an int is); also a ``TypeError``."""
+
+
+class EnvStateError(SimError, RuntimeError):
+    """An environment called in the wrong state: ``step()`` before the first successful
+    ``reset()``, after the episode ended (a step returned ``terminated`` or ``truncated``;
+    the Gymnasium convention: reset first) or after ``close()``; also a ``RuntimeError``."""
+
+
+class SceneFormatError(SimError):
+    """A scene file is malformed: the message names the file and the field (``objects[2].yaw``)."""
 
 
 class AgentError(ConceptFusionError, ValueError):

@@ -10,6 +10,31 @@ from pathlib import Path
 __all__ = ["main"]
 
 
+class _Parser(argparse.ArgumentParser):
+    """An ``ArgumentParser`` whose errors are one line on stderr (exit status 2) and that knows
+    its flags, for "did you mean" on a mistyped one."""
+
+    def __init__(self, *args, **kwargs) -> None:
+        self.flags: list[str] = []
+        super().__init__(*args, **kwargs)
+
+    def add_argument(self, *args, **kwargs):
+        action = super().add_argument(*args, **kwargs)
+        self.flags.extend(action.option_strings)
+        return action
+
+    def error(self, message: str):
+        self.exit(2, f"{self.prog}: {message} (see {self.prog} --help)\n")
+
+
+def _unknown_flags(parser: _Parser, extra: list[str]) -> str:
+    from conceptfusion.names import did_you_mean
+
+    flag = next((e.partition("=")[0] for e in extra if e.startswith("-")), None)
+    hint = did_you_mean(flag, parser.flags, n=2, cutoff=0.6) if flag else ""
+    return f"unrecognized arguments: {' '.join(extra)}{hint}"
+
+
 def _cmd_demo(args: argparse.Namespace) -> int:
     from harness.demo.run import run_demo
     from harness.demo.scoring import DemoConfig
@@ -46,7 +71,7 @@ def _cmd_demo(args: argparse.Namespace) -> int:
 def build_parser() -> argparse.ArgumentParser:
     from conceptfusion.perception.registry import DEFAULT_ENCODER
 
-    parser = argparse.ArgumentParser(
+    parser = _Parser(
         prog="cfharness",
         description="ConceptFusion mapping and agent evaluation harness.",
     )
@@ -73,15 +98,26 @@ def build_parser() -> argparse.ArgumentParser:
     from harness.commands import add_eval_commands
 
     add_eval_commands(sub)
+    parser.set_defaults(_commands=sub.choices)
     return parser
 
 
+def _parse(parser: _Parser, argv: list[str] | None) -> argparse.Namespace:
+    args, extra = parser.parse_known_args(argv)
+    if extra:
+        sub = args._commands.get(args.command) if args.command else None
+        (sub or parser).error(_unknown_flags(sub or parser, extra))
+    return args
+
+
 def main(argv: list[str] | None = None) -> int:
+    """Run the ``cfharness`` command line; returns the exit status (2: a bad argument or setting,
+    reported in one line on stderr)."""
     parser = build_parser()
-    args = parser.parse_args(argv)
+    args = _parse(parser, argv)
     logging.basicConfig(level=logging.INFO if args.verbose else logging.WARNING, format="%(levelname)s %(name)s: %(message)s")
     if args.command is None:
-        args = parser.parse_args(["demo"] + (argv or []))
+        args = _parse(parser, ["demo"] + (argv if argv is not None else sys.argv[1:]))
     return args.func(args)
 
 

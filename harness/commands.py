@@ -18,8 +18,10 @@ def _parse_kv(items: list[str] | None) -> dict:
     out = {}
     for item in items or []:
         key, sep, value = item.partition("=")
-        if not sep or not key:
+        if not sep or not key.strip():
             raise ValueError(f"--agent-option: expected KEY=VALUE, got {item!r}")
+        if key.strip() in out and out[key.strip()] != value.strip():
+            raise ValueError(f"--agent-option {key.strip()}: given twice, {out[key.strip()]!r} and {value.strip()!r}")
         out[key.strip()] = value.strip()
     return out
 
@@ -46,24 +48,29 @@ def _print_summary(records: list[dict], stream=sys.stdout) -> None:
 
 
 def cmd_run(args: argparse.Namespace) -> int:
-    from conceptfusion.perception.featurizer import PerceptionSpec
-    from harness.runner.run import RunConfig, run_suites
-    from harness.runner.suites import DEFAULT_SUITES, get_suite
+    """``cfharness run``: every setting is checked (:class:`~harness.runner.run.RunConfig`) and
+    the backend reached (:func:`~harness.runner.run.plan_run`) before anything is written to
+    ``--out``; a bad one is one line on stderr and exit status 2."""
+    from harness.runner.backends import RayUnavailableError
+    from harness.runner.run import RunConfig, plan_run
+    from harness.runner.suites import DEFAULT_SUITES
 
     suites = tuple(args.suite or DEFAULT_SUITES)
     try:
-        for s in suites:
-            get_suite(s)
-        perception = PerceptionSpec.parse(args.encoder)  # a typo fails here, before anything is written
         config = RunConfig(
-            suites=suites, agents=tuple(args.agent) if args.agent else None, encoder=str(perception),
+            suites=suites, agents=tuple(args.agent) if args.agent else None, encoder=args.encoder,
             agent_kwargs=_parse_kv(args.agent_option), limit=args.limit, seed=args.seed, backend=args.backend,
             workers=args.workers, address=args.address, timeout_s=args.timeout, plugins=tuple(args.plugin or ()),
         )
-        t0 = time.monotonic()
-        print(f"run {args.out}: suites {', '.join(suites)}; encoder {config.encoder}; backend {config.backend}", file=sys.stderr)
-        records = run_suites(config, args.out, resume=args.resume)
-    except (ValueError, FileExistsError, FileNotFoundError) as exc:
+        plan = plan_run(config, args.out, resume=args.resume)
+    except (ValueError, TypeError, FileExistsError, FileNotFoundError, RayUnavailableError) as exc:
+        print(f"cfharness run: {exc}", file=sys.stderr)
+        return 2
+    t0 = time.monotonic()
+    print(f"run {args.out}: suites {', '.join(suites)}; encoder {config.encoder}; backend {config.backend}", file=sys.stderr)
+    try:
+        records = plan.execute()
+    except (ValueError, FileExistsError, FileNotFoundError, RayUnavailableError) as exc:
         print(f"cfharness run: {exc}", file=sys.stderr)
         return 2
     _print_summary(records)
@@ -96,13 +103,13 @@ def _check_floors(records: list[dict], suites: tuple[str, ...]) -> int:
 
 
 def cmd_compare(args: argparse.Namespace) -> int:
-    from harness.runner.results import load_results
+    from harness.runner.results import load_runs
     from harness.report.stats import paired_comparison
 
-    records = [r for d in args.runs for r in load_results(Path(d) / "results.jsonl")]
-    try:
+    try:  # a missing folder, an empty or corrupt results file: one line and exit 2, no traceback
+        records = load_runs(args.runs)
         res = paired_comparison(records, args.a, args.b, metric=args.metric, suite=args.suite)
-    except ValueError as exc:
+    except (ValueError, OSError) as exc:
         print(f"cfharness compare: {exc}", file=sys.stderr)
         return 2
     print(json.dumps(res.as_dict() if hasattr(res, "as_dict") else res.__dict__, indent=2, default=str))
@@ -112,7 +119,11 @@ def cmd_compare(args: argparse.Namespace) -> int:
 def cmd_report(args: argparse.Namespace) -> int:
     from harness.report.markdown import write_report
 
-    path = write_report(list(args.runs), Path(args.out) if args.out else Path(args.runs[0]) / "report")
+    try:  # a missing folder, an empty or corrupt results file: one line and exit 2, no traceback
+        path = write_report(list(args.runs), Path(args.out) if args.out else Path(args.runs[0]) / "report")
+    except (ValueError, OSError) as exc:
+        print(f"cfharness report: {exc}", file=sys.stderr)
+        return 2
     print(f"report: {path}")
     return 0
 
@@ -127,7 +138,7 @@ def cmd_list(args: argparse.Namespace) -> int:
         print(f"  {s.name:<22} {s.description}")
     print("agents:")
     for a in AGENTS.values():
-        opts = ", ".join(f"{k}={d!r}" for k, (_, d) in a.kwargs.items())
+        opts = ", ".join(f"{k}={o.default!r}" + (f" ({o.expected})" if o.expected else "") for k, o in a.kwargs.items())
         tag = " (privileged)" if a.privileged else (" (map)" if a.uses_map else "")
         print(f"  {a.name:<16} {a.task:<20}{tag} {a.description}" + (f"\n  {'':<16} options: {opts}" if opts else ""))
     print("encoders:")
@@ -161,12 +172,17 @@ def add_eval_commands(sub) -> None:
     run.add_argument("--import", dest="plugin", action="append", metavar="MODULE",
                      help="import MODULE first (repeatable): a module that registers agents by name with agents.registry.register_agent")
     run.add_argument("--encoder", default="embedded", help="perception for map agents and map suites: embedded (default), oracle (privileged), hf:..., onnx:DIR")
-    run.add_argument("--limit", type=int, help="first N episodes / scenes per suite")
-    run.add_argument("--seed", type=int, default=0, help="episode seed (default 0)")
-    run.add_argument("--backend", default="process", choices=BACKENDS, help="where episodes run (default: process pool)")
-    run.add_argument("--workers", type=int, help="worker processes / Ray CPUs (default: CPU count)")
-    run.add_argument("--address", help="Ray cluster address for --backend ray (default: start a local instance)")
-    run.add_argument("--timeout", type=float, help="seconds per episode before it is recorded as timeout")
+    # numbers arrive as text: RunConfig checks them, with the same messages for Python callers
+    run.add_argument("--limit", metavar="N", help="first N >= 1 episodes / scenes per suite")
+    run.add_argument("--seed", metavar="N", default=0, help="episode seed >= 0 (default 0)")
+    run.add_argument("--backend", default="process", metavar="{" + ",".join(BACKENDS) + "}",
+                     help="where episodes run (default: process pool; serial runs in this process, where an agent "
+                     "calling os._exit or crashing in native code ends the run)")
+    run.add_argument("--workers", metavar="N", help="worker processes / Ray CPUs >= 1 (default: CPU count)")
+    run.add_argument("--address", help="Ray cluster address for --backend ray: auto, HOST:PORT or ray://HOST:PORT "
+                     "(default: start a local instance)")
+    run.add_argument("--timeout", metavar="SECONDS", help="seconds > 0 per episode before it is recorded as timeout "
+                     "(default: the suite's, 600)")
     run.add_argument("--out", default="runs/main", help="run folder (default: runs/main)")
     run.add_argument("--resume", action="store_true", help="finish an interrupted run in --out")
     run.add_argument("--no-report", action="store_true", help="skip writing the report")

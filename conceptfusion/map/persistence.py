@@ -12,13 +12,14 @@ from __future__ import annotations
 
 import io
 import json
+import math
 import os
 import zipfile
 from pathlib import Path
 
 import numpy as np
 
-from conceptfusion.errors import MapFormatError, MapVersionError
+from conceptfusion.errors import MapFormatError, MapVersionError, MissingFileError
 from conceptfusion.map.fusion import PointFusionMap
 from conceptfusion.io_utils import atomic_write_bytes
 
@@ -47,43 +48,121 @@ def save_map(map_: PointFusionMap, path: str | os.PathLike) -> Path:
     return atomic_write_bytes(path, buf.getvalue())
 
 
+_ZIP_MAGIC = b"PK\x03\x04"
+_NPY_MAGIC = b"\x93NUMPY"
+_HEADER_KEYS = {"format": str, "version": int, "feature_dim": int, "num_points": int, "frames_integrated": int, "config": dict}
+_CONFIG_KEYS = ("dist_th", "angle_th_deg", "sigma", "max_depth", "slots")
+_GEO_COLS = 10  # position (3), normal (3), colour (3), confidence (1); see PointFusionMap.state_dict
+
+
+def _is_int(v) -> bool:
+    return isinstance(v, int) and not isinstance(v, bool)
+
+
 def load_map(path: str | os.PathLike) -> PointFusionMap:
-    """Read a map written by :func:`save_map`."""
+    """Read a map written by :func:`save_map`.
+
+    Raises :class:`~conceptfusion.errors.MissingFileError` (a ``FileNotFoundError``) when there
+    is no such file, :class:`~conceptfusion.errors.MapVersionError` for a newer format version,
+    and :class:`~conceptfusion.errors.MapFormatError` naming the file and what is wrong for
+    anything else: not an ``.npz`` archive (a ``.npy`` array, a text file), truncated or corrupt,
+    another format, a header field missing, unknown or of the wrong type, arrays of the wrong
+    dtype or shape, NaN or infinite values, or feature rows that do not exist.
+    """
     p = Path(path)
     if not p.is_file():
-        raise FileNotFoundError(f"map file not found: {p}")
+        if p.exists():
+            raise MapFormatError(f"{p}: expected a map file, got a {'folder' if p.is_dir() else 'special file'}")
+        raise MissingFileError(f"map file not found: {p}")
+    with open(p, "rb") as f:
+        head = f.read(8)
+    if head.startswith(_NPY_MAGIC):
+        raise MapFormatError(f"{p}: not a readable map file: this is a single-array .npy file; a map is an .npz "
+                             "archive written by save_map")
+    if not head.startswith(_ZIP_MAGIC):
+        raise MapFormatError(f"{p}: not a readable map file: expected an .npz archive written by save_map, but the "
+                             f"file starts with {head!r}" if head else f"{p}: not a readable map file: the file is empty")
     try:
         with np.load(p, allow_pickle=False) as z:
             if "header" not in z.files:
                 raise MapFormatError(f"{p}: expected a '{FORMAT_NAME}' file with a header, found entries {z.files[:8]}")
-            header = json.loads(bytes(z["header"]).decode("utf-8"))
+            raw = z["header"]
             arrays = {name: z[name] for name in z.files if name != "header"}
     except MapFormatError:
         raise
-    except (zipfile.BadZipFile, EOFError, OSError, ValueError, KeyError, UnicodeDecodeError) as exc:
+    except ValueError as exc:
+        if "pickle" in str(exc):  # numpy's text would suggest allow_pickle=True: never for a map
+            raise MapFormatError(f"{p}: not a readable map file: an entry holds Python objects, which a map never "
+                                 "does") from None
         raise MapFormatError(f"{p}: not a readable map file (truncated or corrupt?): {exc}") from exc
+    except (zipfile.BadZipFile, EOFError, OSError, KeyError) as exc:
+        raise MapFormatError(f"{p}: not a readable map file (truncated or corrupt?): {exc}") from exc
+    if raw.dtype != np.uint8 or raw.ndim != 1:
+        raise MapFormatError(f"{p}: header: expected JSON text as a 1-D uint8 array, got {raw.dtype}, shape {raw.shape}")
+    try:
+        header = json.loads(raw.tobytes().decode("utf-8"), parse_constant=_refuse_constant)
+    except (UnicodeDecodeError, ValueError, RecursionError) as exc:
+        raise MapFormatError(f"{p}: header: not valid JSON text: {exc}") from None
     if not isinstance(header, dict) or header.get("format") != FORMAT_NAME:
         got = header.get("format") if isinstance(header, dict) else type(header).__name__
         raise MapFormatError(f"{p}: expected format '{FORMAT_NAME}', got {got!r}")
     version = header.get("version")
-    if not isinstance(version, int) or version < 1:
+    if not _is_int(version) or version < 1:
         raise MapFormatError(f"{p}: expected an integer format version >= 1, got {version!r}")
     if version > FORMAT_VERSION:
         raise MapVersionError(
             f"{p}: written by format version {version}; this code reads versions up to {FORMAT_VERSION} "
             "(upgrade the package to read it)"
         )
+    _validate_header(p, header)
     _validate(p, header, arrays)
-    return PointFusionMap.from_state_dict(header, arrays)
+    try:
+        return PointFusionMap.from_state_dict(header, arrays)
+    except (TypeError, ValueError) as exc:  # a safety net: the checks above should have caught it
+        raise MapFormatError(f"{p}: not a valid map: {exc}") from exc
+
+
+def _refuse_constant(name: str):
+    raise ValueError(f"{name} is not a number JSON allows")
+
+
+def _validate_header(p: Path, header: dict) -> None:
+    for key, kind in _HEADER_KEYS.items():
+        if key not in header:
+            raise MapFormatError(f"{p}: header lacks the field {key!r}")
+        v = header[key]
+        if not isinstance(v, kind) or (kind is int and isinstance(v, bool)):
+            raise MapFormatError(f"{p}: header field {key!r}: expected {kind.__name__}, got {v!r}")
+    unknown = sorted(set(header) - set(_HEADER_KEYS))
+    if unknown:
+        raise MapFormatError(f"{p}: header: unknown field(s) {unknown}; expected {sorted(_HEADER_KEYS)}")
+    for key in ("num_points", "frames_integrated"):
+        if header[key] < 0:
+            raise MapFormatError(f"{p}: header field {key!r}: expected >= 0, got {header[key]}")
+    if header["feature_dim"] < 1:
+        raise MapFormatError(f"{p}: header field 'feature_dim': expected >= 1, got {header['feature_dim']}")
+    cfg = header["config"]
+    missing, unknown = [k for k in _CONFIG_KEYS if k not in cfg], sorted(set(cfg) - set(_CONFIG_KEYS))
+    if missing or unknown:
+        raise MapFormatError(f"{p}: header field 'config': expected the keys {list(_CONFIG_KEYS)}"
+                             + (f"; missing {missing}" if missing else "") + (f"; unknown {unknown}" if unknown else ""))
+    for key in _CONFIG_KEYS:
+        v = cfg[key]
+        if key == "max_depth" and v is None:  # None stands for infinity
+            continue
+        if key == "slots":
+            ok = _is_int(v) and v >= 1
+        else:
+            ok = isinstance(v, (int, float)) and not isinstance(v, bool) and math.isfinite(v) and v > 0
+        if not ok:
+            what = "an integer >= 1" if key == "slots" else "a positive finite number" + (" or null" if key == "max_depth" else "")
+            raise MapFormatError(f"{p}: header field 'config.{key}': expected {what}, got {v!r}")
+    if not cfg["angle_th_deg"] <= 180:
+        raise MapFormatError(f"{p}: header field 'config.angle_th_deg': expected a value in (0, 180], got {cfg['angle_th_deg']!r}")
 
 
 def _validate(p: Path, header: dict, arrays: dict[str, np.ndarray]) -> None:
-    try:
-        n = int(header["num_points"])
-        d = int(header["feature_dim"])
-        slots = int(header["config"]["slots"])
-    except (KeyError, TypeError, ValueError) as exc:
-        raise MapFormatError(f"{p}: header lacks a field: {exc}") from exc
+    n, d, slots = header["num_points"], header["feature_dim"], header["config"]["slots"]
     for name, (kind, ndim, per_point) in _EXPECTED.items():
         if name not in arrays:
             raise MapFormatError(f"{p}: expected array '{name}', file has {sorted(arrays)}")
@@ -94,14 +173,19 @@ def _validate(p: Path, header: dict, arrays: dict[str, np.ndarray]) -> None:
                 + (f", {n} rows" if per_point else "")
                 + f"; got {a.dtype}, shape {a.shape}"
             )
+    unknown = sorted(set(arrays) - set(_EXPECTED))
+    if unknown:
+        raise MapFormatError(f"{p}: unknown array(s) {unknown}; a map holds {sorted(_EXPECTED)}")
     tri = slots * (slots + 1) // 2
-    if (
-        arrays["feat_bank"].shape[1] != d
-        or arrays["feat_point_ids"].shape[1] != slots
-        or arrays["feat_point_w"].shape[1] != slots
-        or arrays["feat_point_gram"].shape[1] != tri
-    ):
-        raise MapFormatError(f"{p}: feature arrays do not match feature_dim={d}, slots={slots}")
+    widths = {"geometry": _GEO_COLS, "feat_bank": d, "feat_point_ids": slots, "feat_point_w": slots, "feat_point_gram": tri}
+    for name, width in widths.items():
+        if arrays[name].shape[1] != width:
+            raise MapFormatError(f"{p}: array '{name}' expected {width} columns (feature_dim={d}, slots={slots}), "
+                                 f"got shape {arrays[name].shape}")
+    for name, (kind, _, _) in _EXPECTED.items():
+        if kind == "f" and not np.isfinite(arrays[name]).all():
+            bad = np.argwhere(~np.isfinite(arrays[name]))[0].tolist()
+            raise MapFormatError(f"{p}: array '{name}' holds NaN or infinite values (first at index {bad})")
     ids = arrays["feat_point_ids"]
     if ids.size and (ids.min() < -1 or ids.max() >= len(arrays["feat_bank"])):
         raise MapFormatError(f"{p}: points refer to missing feature bank rows")

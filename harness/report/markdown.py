@@ -29,9 +29,10 @@ from pathlib import Path
 
 import numpy as np
 
+from conceptfusion.errors import MissingFileError
 from conceptfusion.io_utils import atomic_write_bytes, atomic_write_text
 from harness.report import plots as report_plots
-from harness.runner.results import RESULTS_FILE, load_results, record_key
+from harness.runner.results import RESULTS_FILE, ResultsFormatError, load_results, record_key
 from harness.report.stats import group_key, paired_comparison, per_category, summarize
 
 __all__ = ["write_report", "REPORT_FILE"]
@@ -55,8 +56,8 @@ def _collect(inputs, base_dir) -> list[tuple[dict, Path | None]]:
             p = Path(item)
             results = p / RESULTS_FILE if p.is_dir() else p
             if not results.is_file():
-                raise FileNotFoundError(f"write_report: no results at {results} (expected a run folder holding "
-                                        f"{RESULTS_FILE}, or a results file)")
+                raise MissingFileError(f"write_report: no results at {results} (expected a run folder holding "
+                                       f"{RESULTS_FILE}, or a results file)")
             out.extend((r, results.parent) for r in load_results(results))
         else:
             raise TypeError(f"write_report: expected run folders (paths) or records (dicts), got {type(item).__name__}")
@@ -275,7 +276,7 @@ def write_report(run_dirs_or_records, out_dir: str | os.PathLike, *, title: str 
     items = list({record_key(r): (r, b) for r, b in _collect(run_dirs_or_records, base_dir)}.values())
     records = [r for r, _ in items]
     if not records:
-        raise ValueError("write_report: the runs hold no records yet")
+        raise ResultsFormatError("write_report: the runs hold no records yet (empty results files?)")
     out = Path(out_dir)
     out.mkdir(parents=True, exist_ok=True)
     w = _Writer(out)

@@ -19,10 +19,17 @@ from typing import Iterable, Iterator, Protocol, runtime_checkable
 
 from harness.runner.results import make_record
 
-__all__ = ["Job", "job_record", "import_plugins", "WORKER_THREADS_ENV", "worker_thread_share"]
+__all__ = ["Job", "JobTimeout", "job_record", "import_plugins", "WORKER_THREADS_ENV", "worker_thread_share"]
 
 WORKER_THREADS_ENV = "CF_WORKER_THREADS"
 """Set by the process backend in each worker: that worker's share of the CPU cores."""
+
+
+class JobTimeout(BaseException):
+    """Raised inside a job that runs past its ``timeout_s`` on the serial backend (from a
+    ``SIGALRM`` handler). A ``BaseException``, like ``KeyboardInterrupt``: a job's
+    ``except Exception`` does not turn it into a ``failed`` record; the backend records
+    ``timeout``. Jobs clean up (close environments) and let it through."""
 
 
 @runtime_checkable
@@ -32,7 +39,8 @@ class Job(Protocol):
     run_id: str
     suite: str
     timeout_s: float
-    """Wall-clock limit; past it the process and Ray backends stop the job and record ``timeout``."""
+    """Wall-clock limit; past it the backends stop the job and record ``timeout`` (the serial
+    backend raises :class:`JobTimeout` in it)."""
     plugins: tuple[str, ...]
     """Modules the job imports in its worker before it runs (they register user agents)."""
 
@@ -51,7 +59,8 @@ class Job(Protocol):
 
     def run(self) -> list[dict]:
         """Run the job; its result records. Never raises for what goes wrong inside the job:
-        that becomes a record with ``status="failed"`` and the error."""
+        that becomes a record with ``status="failed"`` and the error (a ``SystemExit`` too).
+        Lets :class:`JobTimeout` and ``KeyboardInterrupt`` through."""
 
     def failure_record(self, status: str, error: str, wall_s: float) -> dict:
         """The record of the job when its worker timed out (``status="timeout"``) or died

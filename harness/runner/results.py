@@ -12,7 +12,11 @@ A record (one line, one JSON object)::
 Crash safety: :func:`append_record` writes each line with one ``os.write`` on an ``O_APPEND``
 descriptor and fsyncs it, so a killed writer loses at most the line it was writing. Such a
 half-written last line is skipped (with a warning) by :func:`load_results` and cut off by
-:func:`repair_results` before a resumed run appends.
+:func:`repair_results` before a resumed run appends. Other damage is not what a killed writer
+leaves: a record with a bad field (``"seed": "abc"``, ``"status": "weird"``, NaN) is always
+refused, naming file, line and field; a junk line in the middle is skipped with a warning when
+reading for a report, but :func:`repair_results` refuses it (naming the lines) so that a resumed
+run never appends after junk.
 
 The run's settings live next to the results in ``run.json`` (:func:`write_run_config`), so a
 resumed run can check that it continues the same run.
@@ -28,14 +32,14 @@ from dataclasses import dataclass
 from datetime import datetime, timezone
 from pathlib import Path
 
-from conceptfusion.errors import HarnessError
+from conceptfusion.errors import HarnessError, MissingFileError
 from conceptfusion.io_utils import atomic_write_bytes, atomic_write_text
 
 __all__ = [
     "RESULTS_FORMAT", "RESULTS_VERSION", "RUN_CONFIG_FORMAT", "RUN_CONFIG_VERSION", "RESULTS_FILE", "RUN_CONFIG_FILE",
     "STATUSES", "ResultsFormatError", "EpisodeKey", "agent_label", "record_key", "make_record", "append_record",
     "load_results", "repair_results", "completed_keys", "latest_records", "write_run_config", "read_run_config",
-    "check_run_config", "harness_version",
+    "check_run_config", "harness_version", "load_runs",
 ]
 
 RESULTS_FORMAT = "cf-results"
@@ -233,9 +237,81 @@ def _check_header(rec, where: str) -> None:
                                  f"version {RESULTS_VERSION}; upgrade conceptfusion-harness")
 
 
-def _scan(data: bytes, where: str, strict: bool) -> tuple[list[dict], int]:
-    """Parse the complete lines; return the records and the byte length of the good prefix."""
+def _non_finite(value, path: str) -> str | None:
+    """The path of the first NaN or infinite float inside ``value`` (JSON data), or None."""
+    if isinstance(value, float):
+        return None if math.isfinite(value) else path
+    if isinstance(value, dict):
+        items = value.items()
+    elif isinstance(value, list):
+        items = enumerate(value)
+    else:
+        return None
+    for k, v in items:
+        found = _non_finite(v, f"{path}[{k!r}]")
+        if found:
+            return found
+    return None
+
+
+def _check_record(rec: dict, where: str) -> None:
+    """Every field of a parsed record, as :func:`make_record` writes them; ``ResultsFormatError``
+    naming ``where`` (file and line) and the field otherwise."""
+    allowed = set(_REQUIRED) | set(_OPTIONAL) | {"format", "version", "harness_version", "finished_at"}
+    unknown = sorted(set(rec) - allowed)
+    if unknown:
+        raise ResultsFormatError(f"{where}: unknown field(s) {unknown}; a record holds {sorted(allowed)}")
+    for name, kind in _REQUIRED.items():
+        if name not in rec:
+            raise ResultsFormatError(f"{where}: missing field {name!r}")
+        value = rec[name]
+        if not isinstance(value, kind) or isinstance(value, bool):
+            raise ResultsFormatError(f"{where}: field {name!r}: expected {'an integer' if kind is int else 'a string'}, "
+                                     f"got {value!r}")
+    if rec["status"] not in STATUSES:
+        raise ResultsFormatError(f"{where}: field 'status': expected one of {STATUSES}, got {rec['status']!r}")
+    for name, (kind, _) in _OPTIONAL.items():
+        if name in rec and not isinstance(rec[name], kind):
+            expected = "an object" if kind is dict else "a string or null"
+            raise ResultsFormatError(f"{where}: field {name!r}: expected {expected}, got {rec[name]!r}")
+    for name in ("harness_version", "finished_at"):
+        if name in rec and not isinstance(rec[name], str):
+            raise ResultsFormatError(f"{where}: field {name!r}: expected a string, got {rec[name]!r}")
+    for metric, value in rec.get("metrics", {}).items():
+        if value is None or isinstance(value, bool):
+            continue
+        if not isinstance(value, (int, float)) or not math.isfinite(value):
+            raise ResultsFormatError(f"{where}: field 'metrics[{metric!r}]': expected a finite number, true/false or "
+                                     f"null, got {value!r}")
+    for name, value in rec.get("timings", {}).items():
+        if isinstance(value, bool) or not isinstance(value, (int, float)) or not math.isfinite(value):
+            raise ResultsFormatError(f"{where}: field 'timings[{name!r}]': expected a finite number, got {value!r}")
+    for name in ("agent_kwargs", "extras"):
+        bad = _non_finite(rec.get(name), name)
+        if bad:
+            raise ResultsFormatError(f"{where}: field {bad!r}: NaN or infinity, which a record never holds")
+
+
+def _describe(raw: bytes) -> str:
+    try:
+        text = raw.decode("utf-8")
+    except UnicodeDecodeError:
+        return "binary data"
+    if "\0" in text:
+        return "binary data"
+    return f"text {text[:40]!r}" + ("..." if len(text) > 40 else "")
+
+
+def _scan(data: bytes, where: str) -> tuple[list[dict], int, list[tuple[int, str]], str | None]:
+    """Parse the complete lines.
+
+    Returns the records, the byte length of the good prefix (everything but a half-written last
+    line), the corrupt lines elsewhere as ``(line number, reason)`` and the warning about a
+    half-written last line (None: there is none). A line that is JSON but not a valid record
+    raises ``ResultsFormatError`` (file, line, field) at once.
+    """
     records: list[dict] = []
+    corrupt: list[tuple[int, str]] = []
     lines = data.split(b"\n")
     complete_end = len(data) - len(lines[-1])  # bytes up to and including the last newline
     body, tail = lines[:-1], lines[-1]
@@ -248,58 +324,105 @@ def _scan(data: bytes, where: str, strict: bool) -> tuple[list[dict], int]:
             continue
         try:
             rec = json.loads(raw)
-        except (json.JSONDecodeError, UnicodeDecodeError) as exc:
+        except (json.JSONDecodeError, UnicodeDecodeError, RecursionError) as exc:
             if i == len(body) and not tail.strip():
-                warnings.warn(f"{where}: line {i}: skipping a half-written last line ({exc})", stacklevel=3)
-                return records, good_end
-            if strict:
-                raise ResultsFormatError(f"{where}: line {i}: corrupt record: {exc}") from exc
-            warnings.warn(f"{where}: line {i}: skipping a corrupt record ({exc})", stacklevel=3)
+                return records, good_end, corrupt, f"{where}: line {i}: skipping a half-written last line ({exc})"
+            corrupt.append((i, f"{_describe(raw)}, not a JSON record ({exc})"))
             good_end = offset
             continue
         _check_header(rec, f"{where}: line {i}")
+        _check_record(rec, f"{where}: line {i}")
         records.append(rec)
         good_end = offset
     if tail.strip():
-        warnings.warn(f"{where}: line {len(body) + 1}: skipping a half-written last line (no newline)", stacklevel=3)
-    elif good_end == complete_end:
+        return records, good_end, corrupt, f"{where}: line {len(body) + 1}: skipping a half-written last line (no newline)"
+    if good_end == complete_end:
         good_end = len(data)  # keep trailing whitespace after the last newline
-    return records, good_end
+    return records, good_end, corrupt, None
+
+
+def _read(p: Path) -> bytes:
+    if p.is_dir():
+        raise ResultsFormatError(f"{p}: expected a results file, got a folder")
+    return p.read_bytes()
 
 
 def load_results(path: str | os.PathLike, *, strict: bool = False) -> list[dict]:
     """Records of a ``results.jsonl`` file, in file order; a missing file gives ``[]``.
 
     A last line without newline, or a last line that is not valid JSON, is what a killed writer
-    leaves: it is skipped with a warning naming file and line. A corrupt line elsewhere is
-    skipped with a warning by default and raises ``ResultsFormatError`` (file and line) when
-    ``strict``. A record of another format or of a version newer than :data:`RESULTS_VERSION`
-    always raises ``ResultsFormatError`` naming the version found and the one supported.
+    leaves: it is skipped with a warning naming file and line. A corrupt line elsewhere (not
+    JSON) is skipped with a warning by default and raises ``ResultsFormatError`` (file and line)
+    when ``strict``; a file with corrupt lines and no record at all (a binary or text file) is
+    not a results file and always raises. A line that is JSON but not a valid record always
+    raises ``ResultsFormatError`` naming file, line and field: another format or a version newer
+    than :data:`RESULTS_VERSION`, a missing or unknown field, a value of the wrong type
+    (``"seed": "abc"``, ``"success": "yes"``), a status not in :data:`STATUSES`, or NaN.
     """
     p = Path(path)
     if not p.exists():
         return []
-    records, _ = _scan(p.read_bytes(), str(p), strict)
+    records, _, corrupt, half_written = _scan(_read(p), str(p))
+    if corrupt and (strict or not records):
+        no, why = corrupt[0]
+        lead = f"{p}: line {no}: corrupt record: {why}"
+        raise ResultsFormatError(lead if records else f"{lead}; no line holds a record: this is not a results file")
+    for no, why in corrupt:
+        warnings.warn(f"{p}: line {no}: skipping a corrupt record ({why})", stacklevel=2)
+    if half_written:
+        warnings.warn(half_written, stacklevel=2)
     return records
 
 
 def repair_results(path: str | os.PathLike) -> int:
-    """Cut a half-written last line off a results file (atomic rewrite); returns the bytes removed.
+    """Make a results file safe to append to; returns the bytes removed.
 
-    A missing or healthy file is left alone (returns 0). Corrupt lines elsewhere are kept (they
-    are not the signature of a killed writer; :func:`load_results` reports them).
+    A half-written last line (what a killed writer leaves) is cut off (atomic rewrite). A missing
+    or healthy file is left alone (returns 0). Any other damage is refused with
+    ``ResultsFormatError`` naming the file and the line(s), and nothing is changed: a corrupt
+    line elsewhere is not the signature of a killed writer but of something else writing to the
+    file, so a resumed run neither appends after it (which would bury it in the middle of the
+    run) nor drops it silently; fix or delete the line(s) named and resume again. Records that
+    are JSON but invalid raise as in :func:`load_results`.
     """
     p = Path(path)
     if not p.exists():
         return 0
-    data = p.read_bytes()
-    with warnings.catch_warnings():
-        warnings.simplefilter("ignore")
-        _, good_end = _scan(data, str(p), strict=False)
+    data = _read(p)
+    _, good_end, corrupt, _ = _scan(data, str(p))
+    if corrupt:
+        listed = "; ".join(f"line {no}: {why}" for no, why in corrupt[:3]) + ("; ..." if len(corrupt) > 3 else "")
+        raise ResultsFormatError(f"{p}: holds {len(corrupt)} corrupt line(s) that a killed run does not leave "
+                                 f"({listed}); not appending after them: fix or delete line(s) "
+                                 f"{', '.join(str(no) for no, _ in corrupt)} and resume again")
     if good_end == len(data):
         return 0
     atomic_write_bytes(p, data[:good_end])
     return len(data) - good_end
+
+
+def load_runs(run_dirs) -> list[dict]:
+    """Records of run folders (or results files), in order, for ``report`` and ``compare``.
+
+    Raises :class:`~conceptfusion.errors.MissingFileError` naming a path that does not exist
+    or a folder that holds no :data:`RESULTS_FILE`, and ``ResultsFormatError`` as
+    :func:`load_results` does or when there are no records at all.
+    """
+    paths = [run_dirs] if isinstance(run_dirs, (str, os.PathLike)) else list(run_dirs)
+    if not paths:
+        raise ResultsFormatError("expected at least one run folder, got none")
+    records: list[dict] = []
+    for item in paths:
+        p = Path(item)
+        results = p / RESULTS_FILE if p.is_dir() else p
+        if not p.exists():
+            raise MissingFileError(f"{p}: no such run folder or results file")
+        if not results.is_file():
+            raise MissingFileError(f"{p}: no {RESULTS_FILE} here; is it a run folder?")
+        records.extend(load_results(results))
+    if not records:
+        raise ResultsFormatError(f"no records in {', '.join(str(x) for x in paths)} (empty results file?)")
+    return records
 
 
 def completed_keys(records, *, statuses: tuple[str, ...] = STATUSES) -> set[EpisodeKey]:

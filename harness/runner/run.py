@@ -8,6 +8,15 @@ A run lives in a folder: ``run.json`` (its settings) and ``results.jsonl`` (one 
 episode or map case, appended as each finishes, so an interrupted run loses at most the jobs in
 flight). ``resume=True`` repairs a half-written last line, checks the settings match, and runs
 only the jobs without a record.
+
+Settings are checked when a :class:`RunConfig` is made
+(:func:`~harness.runner.settings.validate_run_config`): names
+(suites, agents, encoder, backend, option keys, with the nearest valid ones), option values,
+counts, seeds and the timeout; every problem is a :class:`~conceptfusion.errors.HarnessError`
+(a ``ValueError``) whose message starts with the command-line flag of the setting
+(``--limit: expected an integer >= 1, got -148``). :func:`plan_run` then builds every job and
+checks that the backend is reachable (a bounded connect) before anything is written to the run
+folder.
 """
 
 from __future__ import annotations
@@ -19,47 +28,62 @@ from dataclasses import dataclass, field
 from pathlib import Path
 from typing import Callable
 
-from conceptfusion.names import unknown_name_error
-from conceptfusion.perception.featurizer import PerceptionSpec
-from harness.runner.backends import run_jobs
+from agents.registry import AGENTS, resolve_agent
+from harness.runner.backends import check_backend, run_jobs
 from harness.runner.jobs import Job, import_plugins
 from harness.runner.map_jobs import map_suite_jobs
 from harness.runner.results import (
     agent_label, append_record, completed_keys, load_results, read_run_config, record_key, repair_results, write_run_config,
 )
+from harness.runner.settings import accepts_keyword, check_agent, validate_run_config
 from harness.runner.suites import Suite, get_suite
 from harness.runner.tasks import EpisodeJob
 from sim_envs.scenes.episodes import load_episodes
 
-__all__ = ["RunConfig", "episode_jobs", "suite_jobs", "run_suites", "Progress"]
+__all__ = ["RunConfig", "RunPlan", "plan_run", "episode_jobs", "suite_jobs", "run_suites", "Progress"]
 
 
 @dataclass(frozen=True)
 class RunConfig:
-    """What a run does; stored in ``run.json`` so ``--resume`` continues the same run."""
+    """What a run does; stored in ``run.json`` so ``--resume`` continues the same run.
+
+    Every field is checked on construction (:func:`validate_run_config`); the command-line flag
+    of each field is given in brackets, and error messages name the flag.
+    """
 
     suites: tuple[str, ...]
+    """Suite names (``--suite``), at least one, each once."""
     agents: tuple[str, ...] | None = None
-    """Agents per episode suite (None: each suite's defaults)."""
+    """Agents per episode suite (``--agent``; None: each suite's defaults): registered names or
+    ``"module:Class"`` import paths, each fitting every episode suite of the run."""
     encoder: str = "embedded"
-    """Perception for the map-using agents and the map suites: an encoder spec
+    """Perception for the map-using agents and the map suites (``--encoder``): an encoder spec
     (:class:`~conceptfusion.perception.featurizer.PerceptionSpec`, accepted too and stored as its
     string); an unknown name fails here, naming the nearest ones."""
     agent_kwargs: dict = field(default_factory=dict)
-    """Extra options for every agent that accepts them (e.g. ``{"integrate_every": 2}``)."""
+    """Extra options (``--agent-option KEY=VALUE``) for every agent that accepts them (e.g.
+    ``{"integrate_every": 2}``) and for the map suites
+    (:data:`~harness.runner.settings.MAP_SUITE_OPTIONS`). A key that no
+    agent or suite of the run accepts, or a value out of an option's range, is refused; the
+    values are stored as given (command-line strings stay strings)."""
     limit: int | None = None
-    """First N episodes of each suite (None: the suite's own limit, or all)."""
+    """First N >= 1 episodes of each suite (``--limit``; None: the suite's own limit, or all)."""
     seed: int = 0
+    """Episode seed >= 0 (``--seed``)."""
     backend: str = "process"
+    """``--backend``: one of :data:`~harness.runner.backends.BACKENDS`."""
     workers: int | None = None
+    """Worker processes / Ray CPUs >= 1 (``--workers``; None: the CPU count)."""
     address: str | None = None
+    """Ray cluster address (``--address``; only with ``backend="ray"``)."""
     timeout_s: float | None = None
+    """Seconds > 0 per episode before it is recorded as ``timeout`` (``--timeout``; None: the suite's)."""
     plugins: tuple[str, ...] = ()
-    """Modules imported (in every worker too) before agents are built: they register agents by
-    name with :func:`agents.registry.register_agent`."""
+    """Modules imported (in every worker too) before agents are built (``--import``): they register
+    agents by name with :func:`agents.registry.register_agent`."""
 
     def __post_init__(self) -> None:
-        object.__setattr__(self, "encoder", str(PerceptionSpec.parse(self.encoder)))
+        validate_run_config(self)
 
     def settings(self) -> dict:
         """The part that must match on resume (not the backend: results do not depend on it)."""
@@ -95,19 +119,11 @@ class Progress:
 
 
 def _agent_kwargs_for(agent: str, encoder: str, extra: dict) -> dict:
-    import inspect
-
-    from agents.registry import AGENTS, resolve_agent
-
     spec = AGENTS.get(agent)
-    if spec is None:  # a user agent given by import path: every option, and the encoder if it takes one
-        kw = dict(extra)
+    if spec is None:  # a user agent given by import path: the options it takes, and the encoder if it takes one
         factory = resolve_agent(agent)  # an unimportable path fails here, before any episode runs
-        try:
-            params = inspect.signature(factory).parameters
-        except (TypeError, ValueError):  # a callable without a signature (some builtins)
-            params = {}
-        if "encoder" in params or any(p.kind is inspect.Parameter.VAR_KEYWORD for p in params.values()):
+        kw = {k: v for k, v in extra.items() if accepts_keyword(factory, k)}
+        if accepts_keyword(factory, "encoder", unknown=False):
             kw.setdefault("encoder", encoder)
         return kw
     kw = {k: v for k, v in extra.items() if k in spec.kwargs}
@@ -126,7 +142,7 @@ def episode_jobs(suite: Suite, config: RunConfig, run_id: str) -> list[EpisodeJo
     agents = config.agents or suite.agents
     jobs = []
     for agent in agents:
-        _check_agent(agent, suite)
+        check_agent(agent, suite)
         kw = _agent_kwargs_for(agent, suite.encoder or config.encoder, config.agent_kwargs)
         for ep in episodes:
             jobs.append(EpisodeJob(
@@ -135,19 +151,6 @@ def episode_jobs(suite: Suite, config: RunConfig, run_id: str) -> list[EpisodeJo
                 plugins=tuple(config.plugins),
             ))
     return jobs
-
-
-def _check_agent(agent: str, suite: Suite) -> None:
-    from agents.registry import AGENTS, agent_names
-
-    if agent in AGENTS:
-        if AGENTS[agent].task not in (suite.task, "any"):
-            raise ValueError(f"agent {agent!r} solves {AGENTS[agent].task}, not suite {suite.name!r} ({suite.task}); "
-                             f"agents for it: {', '.join(agent_names(suite.task))}")
-        return
-    if ":" not in agent:
-        raise unknown_name_error("agent", agent, AGENTS,
-                                 listing=f"for suite {suite.name!r}: {', '.join(agent_names(suite.task))}; or 'module:Class'")
 
 
 def _map_jobs(suite: Suite, config: RunConfig, run_id: str, run_dir: Path) -> list[Job]:
@@ -167,6 +170,74 @@ def suite_jobs(suite: Suite, config: RunConfig, run_id: str, run_dir: str | Path
     return _JOB_BUILDERS[suite.kind](suite, config, run_id, Path(run_dir))
 
 
+@dataclass
+class RunPlan:
+    """A run ready to go (see :func:`plan_run`): its settings, folder, id and the jobs still to do."""
+
+    config: RunConfig
+    run_dir: Path
+    run_id: str
+    jobs: list[Job]
+    """Every job of the run, in order."""
+    todo: list[Job]
+    """The jobs without a record yet (all of them for a new run)."""
+
+    @property
+    def results(self) -> Path:
+        return self.run_dir / "results.jsonl"
+
+    def execute(self, *, on_record: Callable[[dict], None] | None = None, progress: bool = True) -> list[dict]:
+        """Run the jobs still to do on the config's backend, appending each record as it comes;
+        returns all records of the run."""
+        config = self.config
+        bar = Progress(len(self.todo), "+".join(config.suites)) if progress and self.todo else None
+        for rec in run_jobs(self.todo, backend=config.backend, workers=config.workers, address=config.address):
+            append_record(self.results, rec)
+            if on_record:
+                on_record(rec)
+            if bar:
+                bar.update(_progress_note(rec))
+        return load_results(self.results)
+
+
+def plan_run(config: RunConfig, run_dir: str | Path, *, resume: bool = False) -> RunPlan:
+    """Prepare a run: build every job (a bad agent or option fails here), check that the
+    backend is reachable (:func:`~harness.runner.backends.check_backend`, a bounded connect),
+    and only then write ``run.json`` (or, with ``resume``, repair a half-written last line of
+    the results).
+
+    A folder whose run never recorded a result (a start that failed or was stopped early) is
+    started afresh: its ``run.json`` is replaced.
+
+    Raises:
+        FileExistsError: ``run_dir`` holds results and ``resume`` is False.
+        ValueError: ``resume`` with settings other than the stored ones.
+        FileNotFoundError: ``resume`` in a folder without ``run.json``.
+        RayUnavailableError: the Ray backend is not installed or its cluster does not answer.
+    """
+    run_dir = Path(run_dir)
+    results = run_dir / "results.jsonl"
+    suites = [get_suite(s) for s in config.suites]
+    if resume:
+        stored = read_run_config(run_dir)
+        if stored.get("settings") != config.settings():
+            raise ValueError(f"{run_dir}: --resume expects the settings the run started with: {stored.get('settings')}, got {config.settings()}")
+        run_id = stored["run_id"]
+    else:
+        if results.exists() and results.stat().st_size > 0:
+            raise FileExistsError(f"{run_dir} already holds results; use --resume to finish it or choose another --out")
+        run_id = uuid.uuid4().hex[:12]
+    jobs = [job for suite in suites for job in suite_jobs(suite, config, run_id, run_dir)]
+    check_backend(config.backend, config.address, workers=config.workers)
+    if resume:
+        repair_results(results)
+    else:
+        write_run_config(run_dir, {"run_id": run_id, "settings": config.settings(), "backend": config.backend}, overwrite=True)
+    done = completed_keys(load_results(results))
+    todo = [j for j in jobs if record_key(j.key_record()) not in done]
+    return RunPlan(config, run_dir, run_id, jobs, todo)
+
+
 def run_suites(
     config: RunConfig, run_dir: str | Path, *, resume: bool = False, on_record: Callable[[dict], None] | None = None,
     progress: bool = True,
@@ -174,33 +245,10 @@ def run_suites(
     """Run every suite of ``config`` into ``run_dir``; returns all records of the run.
 
     The jobs of all suites (episode and map suites alike) are built first, so that a bad agent
-    name fails before any work, then run together on ``config.backend``.
+    name fails before any work, then run together on ``config.backend`` (:func:`plan_run`, then
+    :meth:`RunPlan.execute`).
     """
-    run_dir = Path(run_dir)
-    results = run_dir / "results.jsonl"
-    suites = [get_suite(s) for s in config.suites]  # unknown names fail before any work
-    if resume:
-        stored = read_run_config(run_dir)
-        if stored.get("settings") != config.settings():
-            raise ValueError(f"{run_dir}: --resume expects the settings the run started with: {stored.get('settings')}, got {config.settings()}")
-        run_id = stored["run_id"]
-        repair_results(results)
-    else:
-        if results.exists() and results.stat().st_size > 0:
-            raise FileExistsError(f"{run_dir} already holds results; use --resume to finish it or choose another --out")
-        run_id = uuid.uuid4().hex[:12]
-        write_run_config(run_dir, {"run_id": run_id, "settings": config.settings(), "backend": config.backend})
-    done = completed_keys(load_results(results))
-    jobs = [job for suite in suites for job in suite_jobs(suite, config, run_id, run_dir)]
-    todo = [j for j in jobs if record_key(j.key_record()) not in done]
-    bar = Progress(len(todo), "+".join(config.suites)) if progress and todo else None
-    for rec in run_jobs(todo, backend=config.backend, workers=config.workers, address=config.address):
-        append_record(results, rec)
-        if on_record:
-            on_record(rec)
-        if bar:
-            bar.update(_progress_note(rec))
-    return load_results(results)
+    return plan_run(config, run_dir, resume=resume).execute(on_record=on_record, progress=progress)
 
 
 def _progress_note(rec: dict) -> str:

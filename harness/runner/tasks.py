@@ -39,7 +39,7 @@ class EpisodeJob:
     seed: int = 0
     env_kwargs: dict = field(default_factory=dict)
     timeout_s: float = 600.0
-    """Wall-clock limit of the episode on the process and Ray backends."""
+    """Wall-clock limit of the episode (every backend; see :mod:`harness.runner.backends`)."""
     plugins: tuple[str, ...] = ()
     """Modules to import before the agent is built (they register user agents)."""
 
@@ -168,7 +168,10 @@ TASK_RUNNERS: dict[str, Callable[[EpisodeJob, Any], tuple[dict, dict, str | None
 
 
 def run_episode(job: EpisodeJob) -> dict:
-    """Run one episode and return its result record (never raises for in-episode errors)."""
+    """Run one episode and return its result record (never raises for in-episode errors, a
+    ``SystemExit`` of the agent included; lets :class:`~harness.runner.jobs.JobTimeout` and
+    ``KeyboardInterrupt`` through after closing the cached environments). ``os._exit`` cannot
+    be caught in-process: on the process backend it is recorded as ``failed`` (the worker died)."""
     t0 = time.perf_counter()
     status, error, metrics, timings, category, extras = "ok", None, {}, {}, None, {}
     try:
@@ -180,11 +183,20 @@ def run_episode(job: EpisodeJob) -> dict:
         spec = AGENTS.get(job.agent)
         extras["uses_map"] = bool(spec.uses_map) if spec else None
         extras["privileged"] = bool(getattr(agent, "privileged", False))
+    except SystemExit as exc:  # sys.exit() in an agent ends the episode, not the run
+        status = "failed"
+        error = (f"SystemExit: the episode called sys.exit({exc.code!r}); recorded as failed\n"
+                 + "".join(traceback.format_exc(limit=-4)))
+        metrics = {"success": False}
+        close_cached_envs()
     except Exception as exc:  # the run goes on; the record says what broke
         status = "failed"
         error = f"{type(exc).__name__}: {exc}\n" + "".join(traceback.format_exc(limit=-4))
         metrics = {"success": False}
         close_cached_envs()  # an environment that raised may be in a bad state
+    except BaseException:  # JobTimeout (serial backend), KeyboardInterrupt: clean up, let it through
+        close_cached_envs()
+        raise
     timings = {**timings, "wall_s": time.perf_counter() - t0}
     return job_record(
         job, status=status, error=error,

@@ -90,24 +90,33 @@ def pybullet_data_dir() -> Path:
     return Path(pybullet_data.getDataPath())
 
 
-def _kind(kind: str) -> MeshKind:
+def _kind(kind: str | MeshKind) -> MeshKind:
+    if isinstance(kind, MeshKind):
+        return kind
     if kind not in MESH_KINDS:
         raise unknown_name_error("mesh kind", kind, MESH_KINDS, cutoff=0.6, listing=f"known: {sorted(MESH_KINDS)}",
                                  error=UnknownKeyError)
     return MESH_KINDS[kind]
 
 
-def _cache_path(kind: str, suffix: str) -> Path:
+def _label(kind: str | MeshKind) -> str:
+    """File-name stem of a kind: its name, or for a :class:`MeshKind` given directly its mesh file's stem."""
+    return Path(kind.mesh).stem if isinstance(kind, MeshKind) else kind
+
+
+def _cache_path(kind: str | MeshKind, suffix: str) -> Path:
     spec = _kind(kind)
     key = hashlib.sha1(f"{_CACHE_VERSION}|{spec.mesh}|{spec.texture}|{spec.up_axis}".encode()).hexdigest()[:10]
-    return cache_dir() / "meshes" / f"{kind}_{key}{suffix}"
+    return cache_dir() / "meshes" / f"{_label(kind)}_{key}{suffix}"
 
 
-def normalized_mesh(kind: str) -> Path:
+def normalized_mesh(kind: str | MeshKind) -> Path:
     """Path of the normalised OBJ of a mesh kind (written on first use, atomically).
 
-    The mesh is z up, its bounding box is ``[-0.5, 0.5] x [-0.5, 0.5] x [0, 1]``, and every
-    vertex has a texture coordinate (same index for ``v`` and ``vt``).
+    ``kind``: a key of :data:`MESH_KINDS`, or a :class:`MeshKind` of another ``pybullet_data``
+    mesh (the object library's extra named meshes). The mesh is z up, its bounding box is
+    ``[-0.5, 0.5] x [-0.5, 0.5] x [0, 1]``, and every vertex has a texture coordinate (same
+    index for ``v`` and ``vt``).
     """
     out = _cache_path(kind, ".obj")
     if out.exists():
@@ -126,7 +135,7 @@ def normalized_mesh(kind: str) -> Path:
     v = (v - [(lo[0] + hi[0]) / 2, (lo[1] + hi[1]) / 2, lo[2]]) / (hi - lo)
     if uv is None or len(uv) != len(v):  # cylindrical projection around z
         uv = np.stack([np.arctan2(v[:, 1], v[:, 0]) / (2 * np.pi) + 0.5, v[:, 2]], axis=1)
-    lines = [f"# {kind}: normalised from pybullet_data/{spec.mesh}"]
+    lines = [f"# {_label(kind)}: normalised from pybullet_data/{spec.mesh}"]
     lines += [f"v {a:.6f} {b:.6f} {c:.6f}" for a, b, c in v]
     lines += [f"vt {a:.6f} {b:.6f}" for a, b in np.asarray(uv, np.float64)[:, :2]]
     lines += [f"f {a}/{a} {b}/{b} {c}/{c}" for a, b, c in faces + 1]
@@ -134,8 +143,9 @@ def normalized_mesh(kind: str) -> Path:
     return out
 
 
-def mesh_texture(kind: str) -> Path | None:
-    """PNG texture of a mesh kind (at most 512 px a side; written on first use), or None."""
+def mesh_texture(kind: str | MeshKind) -> Path | None:
+    """PNG texture of a mesh kind (a name or a :class:`MeshKind`; at most 512 px a side;
+    written on first use), or None."""
     spec = _kind(kind)
     if spec.texture is None:
         return None
@@ -146,13 +156,13 @@ def mesh_texture(kind: str) -> Path | None:
 
     img = cv2.imread(str(pybullet_data_dir() / spec.texture), cv2.IMREAD_COLOR)
     if img is None:
-        raise FileNotFoundError(f"texture of mesh kind {kind!r} not readable: {pybullet_data_dir() / spec.texture}")
+        raise FileNotFoundError(f"texture of mesh kind {_label(kind)!r} not readable: {pybullet_data_dir() / spec.texture}")
     scale = 512 / max(img.shape[:2])
     if scale < 1:
         img = cv2.resize(img, (round(img.shape[1] * scale), round(img.shape[0] * scale)), interpolation=cv2.INTER_AREA)
     ok, buf = cv2.imencode(".png", img)
     if not ok:
-        raise RuntimeError(f"could not encode the texture of mesh kind {kind!r}")
+        raise RuntimeError(f"could not encode the texture of mesh kind {_label(kind)!r}")
     atomic_write_bytes(out, buf.tobytes())
     return out
 

@@ -17,11 +17,17 @@ import numpy as np
 from gymnasium import spaces
 from scipy import ndimage
 
+from conceptfusion.errors import EnvStateError, SimError
+from conceptfusion.names import did_you_mean
 from planners.geodesic import geodesic_to_goal
+from sim_envs.envs.checks import (
+    EpisodeLifecycle, check_action, check_episode, check_episode_set, check_fovy, check_image_size, check_int, check_number,
+    check_scenes_root, episode_from_options,
+)
 from sim_envs.envs.rendering import LastFrameRendering, check_render_mode, frame_spaces
 from sim_envs.mujoco.camera import MujocoRGBDCamera
 from sim_envs.mujoco.scene import build_mujoco
-from sim_envs.scenes.episodes import Episode, resolve_scene
+from sim_envs.scenes.episodes import Episode, EpisodeSet, resolve_scene
 from sim_envs.scenes.floorplan import occupancy_grid
 from sim_envs.scenes.graph import object_aabbs, scene_graph
 from sim_envs.scenes.search_episodes import default_search_episodes
@@ -30,6 +36,8 @@ __all__ = ["ObjectSearchEnv", "box_distance_xy"]
 
 _ACTION_LOW = np.array([-0.3, -1.5, 0.0], np.float32)
 _ACTION_HIGH = np.array([0.6, 1.5, 1.0], np.float32)
+_GOAL_CHARSET = string.ascii_letters + string.digits + " '-,."
+_MAX_GOAL = 200
 
 
 def box_distance_xy(xy, lo_xy, hi_xy) -> float:
@@ -38,7 +46,7 @@ def box_distance_xy(xy, lo_xy, hi_xy) -> float:
     return float(np.linalg.norm(d))
 
 
-class ObjectSearchEnv(LastFrameRendering, gym.Env):
+class ObjectSearchEnv(EpisodeLifecycle, LastFrameRendering, gym.Env):
     """Find an object in an apartment from a text description, and stop next to it.
 
     **Task**: the observation's ``goal`` describes one object ("the red mug"). The agent drives
@@ -65,17 +73,31 @@ class ObjectSearchEnv(LastFrameRendering, gym.Env):
     ``success_distance``) is in ``info`` only.
 
     **Episodes**: pass ``options={"episode": Episode}`` to reset (the harness does, from
-    ``scenes/household/episodes-v1.jsonl``), or give ``episodes`` to the constructor to pick one
-    by the reset seed. Scene paths are relative to ``scenes_root`` (default: the shipped
-    ``scenes/`` folder).
+    ``scenes/household/episodes-v1.jsonl``), or ``options={"episode_index": i}`` to pick the
+    ``i``-th of the episode set, or neither to pick one with the reset seed. The episode set is
+    ``episodes`` given to the constructor (a list of ``Episode``, an ``EpisodeSet`` or an
+    ``object_search`` episode file), by default the shipped one. Scene paths are relative to
+    ``scenes_root`` (default: the shipped ``scenes/`` folder).
+
+    **Input checks** (:mod:`sim_envs.envs.checks`): ``reset`` options other than ``episode`` and
+    ``episode_index`` (or both together) are refused, naming the nearest valid key; an episode is
+    checked field by field (a goal, a finite start pose on free floor, an instruction that fits
+    the ``goal`` space, a goal object the scene has). ``step`` refuses a bad action (above)
+    and, once a step returned ``terminated`` or ``truncated``, every call until ``reset``
+    (:class:`~conceptfusion.errors.EnvStateError`). Constructor arguments are checked:
+    ``width``/``height`` ints in [1, 8192]; ``fovy_deg`` in (0, 180); ``camera_pitch_deg`` in
+    (-90, 90); ``camera_height``, ``robot_radius``, ``success_distance``, ``control_dt`` finite
+    and > 0; ``max_steps`` ``None`` or an int >= 1; ``scenes_root`` ``None`` or a folder.
     """
 
     metadata = {"render_modes": ["rgb_array"], "render_fps": 4}
+    env_name = "ObjectSearch"
+    reset_option_keys = ("episode", "episode_index")
 
     def __init__(
         self,
         *,
-        episodes: list[Episode] | tuple[Episode, ...] | None = None,
+        episodes: list[Episode] | tuple[Episode, ...] | EpisodeSet | str | None = None,
         width: int = 160,
         height: int = 120,
         fovy_deg: float = 70.0,
@@ -88,35 +110,46 @@ class ObjectSearchEnv(LastFrameRendering, gym.Env):
         scenes_root: str | None = None,
         render_mode: str | None = None,
     ) -> None:
+        where = self.env_name
         check_render_mode(render_mode)
-        if success_distance <= 0 or robot_radius <= 0 or control_dt <= 0:
-            raise ValueError("success_distance, robot_radius, control_dt: expected positive values")
-        self._episodes = tuple(episodes) if episodes else None
-        self.width, self.height, self.fovy_deg = int(width), int(height), float(fovy_deg)
-        self.camera_height, self.pitch = float(camera_height), math.radians(camera_pitch_deg)
-        self.robot_radius, self.success_distance = float(robot_radius), float(success_distance)
-        self.control_dt, self._max_steps_override = float(control_dt), max_steps
+        width, height = check_image_size(where, width, height)
+        fovy_deg = check_fovy(where, fovy_deg)
+        camera_pitch_deg = check_number(where, "camera_pitch_deg", camera_pitch_deg, low=-90.0, high=90.0, low_open=True, high_open=True)
+        positive = {"camera_height": camera_height, "robot_radius": robot_radius, "success_distance": success_distance, "control_dt": control_dt}
+        camera_height, robot_radius, success_distance, control_dt = (
+            check_number(where, name, value, low=0.0, low_open=True) for name, value in positive.items()
+        )
+        max_steps = check_int(where, "max_steps", max_steps, minimum=1, allow_none=True)
+        scenes_root = check_scenes_root(where, scenes_root)
+        episodes = check_episode_set(where, episodes, "object_search", scenes_root=scenes_root)
+        self._episodes = episodes.episodes if isinstance(episodes, EpisodeSet) else episodes
+        self.width, self.height, self.fovy_deg = width, height, fovy_deg
+        self.camera_height, self.pitch = camera_height, math.radians(camera_pitch_deg)
+        self.robot_radius, self.success_distance = robot_radius, success_distance
+        self.control_dt, self._max_steps_override = control_dt, max_steps
         self.render_mode, self.scenes_root = render_mode, scenes_root
         self.action_space = spaces.Box(_ACTION_LOW, _ACTION_HIGH, dtype=np.float32)
         self.observation_space = spaces.Dict(
             {
                 **frame_spaces(height, width),
                 "base_pose": spaces.Box(-np.inf, np.inf, (3,), np.float64),
-                "goal": spaces.Text(max_length=200, min_length=1, charset=string.ascii_letters + string.digits + " '-,."),
+                "goal": spaces.Text(max_length=_MAX_GOAL, min_length=1, charset=_GOAL_CHARSET),
             }
         )
         self._sim = None
         self._camera: MujocoRGBDCamera | None = None
         self._scene_key = None
         self._last_frame = None
+        self._pose: np.ndarray | None = None
+        self._goal_box: np.ndarray | None = None
 
     # -- episode set-up --------------------------------------------------------------------
 
     def _load(self, episode: Episode) -> None:
         scene = resolve_scene(episode.scene, episode.scene_seed, scenes_root=self.scenes_root)
         if not scene.rooms:
-            raise ValueError(f"episode {episode.episode_id}: scene {scene.id} is not a household scene (no rooms)")
-        if self._scene_key != scene.id:
+            raise SimError(f"{self.env_name}: episode {episode.episode_id!r}: scene {scene.id} is not a household scene (no rooms)")
+        if self._scene_key != scene.id or self._camera is None:  # a new scene, or closed
             if self._camera is not None:
                 self._camera.close()
             self._sim = build_mujoco(scene)
@@ -137,20 +170,25 @@ class ObjectSearchEnv(LastFrameRendering, gym.Env):
         return bool(0 <= r < h and 0 <= c < w and self._free[r, c])
 
     def reset(self, *, seed: int | None = None, options: dict[str, Any] | None = None):
+        seed, options = self._begin_reset(seed, options)
         super().reset(seed=seed)
-        episode = (options or {}).get("episode")
-        if episode is None:
-            if not self._episodes:
-                self._episodes = default_search_episodes().episodes
-            episode = self._episodes[int(self.np_random.integers(len(self._episodes)))]
-        if not isinstance(episode, Episode) or not episode.goals or episode.start_pose is None:
-            raise ValueError(f"ObjectSearch: expected an object-search Episode with a goal and a start pose, got {episode!r}")
+        if "episode" not in options and not self._episodes:
+            self._episodes = default_search_episodes().episodes
+        episode = episode_from_options(self.env_name, options, self._episodes, self.np_random)
+        check_episode(self.env_name, episode, charset=_GOAL_CHARSET, max_instruction=_MAX_GOAL, search=True)
         self._load(episode)
         self.episode = episode
-        self._goal_index = [o.id for o in self.scene.objects].index(episode.goals[0].object_id)
-        x, y, yaw = episode.start_pose
+        ids = [o.id for o in self.scene.objects]
+        goal_id = episode.goals[0].object_id
+        if goal_id not in ids:
+            raise SimError(
+                f"{self.env_name}: episode {episode.episode_id!r}: scene {self.scene.id} has no object {goal_id!r}"
+                f"{did_you_mean(goal_id, ids)} (objects: {', '.join(ids)})"
+            )
+        self._goal_index = ids.index(goal_id)
+        x, y, yaw = (float(v) for v in episode.start_pose)
         if not self._is_free((x, y)):
-            raise ValueError(f"episode {episode.episode_id}: start pose ({x:.2f}, {y:.2f}) is inside an obstacle")
+            raise SimError(f"{self.env_name}: episode {episode.episode_id}: start pose ({x:.2f}, {y:.2f}) is inside an obstacle")
         self._pose = np.array([x, y, yaw], np.float64)
         self._steps, self._path_length, self._collisions = 0, 0.0, 0
         box = object_aabbs(self._sim)[self._goal_index]
@@ -168,18 +206,14 @@ class ObjectSearchEnv(LastFrameRendering, gym.Env):
         info["grid_cell"] = float(self._occ.cell)
         info["goal_aabb"] = np.asarray(box, np.float64).copy()
         info["success_distance"] = self.success_distance
+        self._episode_started()
         return obs, info
 
     # -- dynamics --------------------------------------------------------------------------
 
     def step(self, action):
-        if self._sim is None:
-            raise RuntimeError("ObjectSearch: call reset() before step()")
-        a = np.asarray(action, np.float64).reshape(-1)
-        if a.shape != (3,):
-            raise ValueError(f"ObjectSearch: expected an action of shape (3,) [linear, angular, stop], got shape {np.shape(action)}")
-        if not np.all(np.isfinite(a)):
-            raise ValueError(f"ObjectSearch: expected finite action values, got {a.tolist()}")
+        a = check_action(self.env_name, action, 3, "[linear, angular, stop]", flatten=True)
+        self._check_step()
         a = np.clip(a, _ACTION_LOW, _ACTION_HIGH)
         self._steps += 1
         stop = a[2] > 0.5
@@ -202,6 +236,7 @@ class ObjectSearchEnv(LastFrameRendering, gym.Env):
         info["success"] = success
         info["spl"] = float(success * self._shortest / max(self._shortest, self._path_length, 1e-9)) if math.isfinite(self._shortest) else 0.0
         truncated = (not stop) and self._steps >= self._max_steps
+        self._step_done(stop, truncated)
         return obs, float(success), bool(stop), bool(truncated), info
 
     # -- sensing ---------------------------------------------------------------------------
@@ -212,10 +247,15 @@ class ObjectSearchEnv(LastFrameRendering, gym.Env):
 
         Shape: ``(2, 3)``: ``[[x_min, y_min, z_min], [x_max, y_max, z_max]]``.
         """
+        if self._goal_box is None:
+            raise EnvStateError(f"{self.env_name}: goal_box needs an episode; call reset() first")
         return self._goal_box
 
     def camera_eye_target(self, pose=None) -> tuple[np.ndarray, np.ndarray]:
-        """Camera position and look-at point for a base pose ``(x, y, yaw)``."""
+        """Camera position and look-at point for a base pose ``(x, y, yaw)`` (default: the
+        current one, which needs a reset)."""
+        if pose is None and self._pose is None:
+            raise EnvStateError(f"{self.env_name}: camera_eye_target() without a pose needs an episode; call reset() first")
         x, y, yaw = self._pose if pose is None else pose
         eye = np.array([x, y, self.camera_height])
         fwd = np.array([math.cos(yaw) * math.cos(self.pitch), math.sin(yaw) * math.cos(self.pitch), -math.sin(self.pitch)])

@@ -14,7 +14,9 @@ from __future__ import annotations
 import numpy as np
 from gymnasium import spaces
 
+from conceptfusion.errors import SimError
 from conceptfusion.frames import RGBDFrame
+from conceptfusion.names import did_you_mean
 
 __all__ = ["RENDER_MODES", "check_render_mode", "frame_spaces", "LastFrameRendering"]
 
@@ -34,9 +36,11 @@ def frame_spaces(height: int, width: int) -> dict[str, spaces.Box]:
 
 
 def check_render_mode(render_mode: str | None) -> str | None:
-    """``render_mode`` when it is ``None`` or one of :data:`RENDER_MODES`; ``ValueError`` otherwise."""
-    if render_mode is not None and render_mode not in RENDER_MODES:
-        raise ValueError(f"render_mode: expected None or 'rgb_array', got {render_mode!r}")
+    """``render_mode`` when it is ``None`` or one of :data:`RENDER_MODES`; otherwise
+    :class:`~conceptfusion.errors.SimError` (a ``ValueError``) naming the nearest mode."""
+    if render_mode is not None and not (isinstance(render_mode, str) and render_mode in RENDER_MODES):
+        hint = did_you_mean(render_mode, RENDER_MODES, n=1) if isinstance(render_mode, str) else ""
+        raise SimError(f"render_mode: expected None or 'rgb_array', got {render_mode!r}{hint}")
     return render_mode
 
 
@@ -64,3 +68,4 @@ class LastFrameRendering:
         if renderer is not None:
             renderer.close()
             setattr(self, self._renderer_attr, None)
+        super().close()  # type: ignore[misc]  (the next close() in the MRO, e.g. gym.Env's)

@@ -7,8 +7,8 @@ from typing import Any
 import gymnasium as gym
 from gymnasium import spaces
 
-from conceptfusion.errors import UnknownNameError
-from conceptfusion.names import did_you_mean
+from conceptfusion.errors import SimError, SimTypeError
+from sim_envs.envs.checks import EpisodeLifecycle, check_choice, check_fovy, check_image_size, check_int
 from sim_envs.envs.rendering import LastFrameRendering, check_render_mode, frame_spaces
 from sim_envs.mujoco.camera import MujocoRGBDCamera
 from sim_envs.mujoco.scene import build_mujoco, split_labels
@@ -24,7 +24,7 @@ GENERATORS = {"tabletop": generate_tabletop, "household": generate_household}
 """Scene generators by ``kind``: seed -> Scene."""
 
 
-class SceneScanEnv(LastFrameRendering, gym.Env):
+class SceneScanEnv(EpisodeLifecycle, LastFrameRendering, gym.Env):
     """Scan a scene along a scripted camera trajectory.
 
     **Task**: none to solve: every step moves the camera to the next pose of the trajectory
@@ -47,9 +47,16 @@ class SceneScanEnv(LastFrameRendering, gym.Env):
     Observation (Dict): ``rgb`` (H, W, 3) uint8, ``depth`` (H, W) float32 metres (``inf``
     where nothing is hit), ``K`` (3, 3), ``cam_to_world`` (4, 4) OpenCV convention,
     ``frame`` index.
+
+    Input checks (:mod:`sim_envs.envs.checks`): ``reset`` takes no options (``None`` or ``{}``);
+    ``step`` refuses any action but 0 and, once the last frame was returned, every call until
+    ``reset`` (:class:`~conceptfusion.errors.EnvStateError`). Constructor arguments are
+    checked: ``num_frames`` an int >= 1, ``width``/``height`` ints in [1, 8192], ``fovy_deg``
+    in (0, 180), ``kind`` a key of :data:`GENERATORS`, ``scene`` ``None`` or a ``Scene``.
     """
 
     metadata = {"render_modes": ["rgb_array"], "render_fps": 10}
+    env_name = "SceneScan"
 
     def __init__(
         self,
@@ -62,13 +69,15 @@ class SceneScanEnv(LastFrameRendering, gym.Env):
         kind: str = "tabletop",
         render_mode: str | None = None,
     ) -> None:
-        if num_frames < 1:
-            raise ValueError(f"num_frames: expected at least 1, got {num_frames}")
-        if kind not in GENERATORS:
-            raise UnknownNameError(f"kind: expected one of {sorted(GENERATORS)}, got {kind!r}" + did_you_mean(kind, GENERATORS, n=1, cutoff=0.6))
-        self.kind = kind
+        where = self.env_name
+        num_frames = check_int(where, "num_frames", num_frames, minimum=1)
+        width, height = check_image_size(where, width, height)
+        fovy_deg = check_fovy(where, fovy_deg)
+        self.kind = check_choice(where, "kind", kind, GENERATORS)
+        if scene is not None and not isinstance(scene, Scene):
+            raise SimTypeError(f"{where}: scene: expected None or a Scene, got {type(scene).__name__}")
         self.render_mode = check_render_mode(render_mode)
-        self.num_frames, self.width, self.height, self.fovy_deg = int(num_frames), int(width), int(height), float(fovy_deg)
+        self.num_frames, self.width, self.height, self.fovy_deg = num_frames, width, height, fovy_deg
         self._fixed_scene = scene
         self.action_space = spaces.Discrete(1)
         self.observation_space = spaces.Dict(
@@ -84,6 +93,7 @@ class SceneScanEnv(LastFrameRendering, gym.Env):
         self._last_frame = None
 
     def reset(self, *, seed: int | None = None, options: dict[str, Any] | None = None):
+        seed, _ = self._begin_reset(seed, options)
         super().reset(seed=seed)
         scene = self._fixed_scene or GENERATORS[self.kind](int(self.np_random.integers(0, 2**31 - 1)))
         if self._camera is not None:
@@ -94,16 +104,18 @@ class SceneScanEnv(LastFrameRendering, gym.Env):
         )
         self._traj = scan_trajectory(scene, self.num_frames)
         self._k = 0
-        return self._observe()
+        out = self._observe()
+        self._episode_started()
+        return out
 
     def step(self, action):
-        if self._sim is None:
-            raise RuntimeError("SceneScan: call reset() before step()")
         if not self.action_space.contains(action):
-            raise ValueError(f"SceneScan: expected action 0 (Discrete(1)), got {action!r}")
+            raise SimError(f"SceneScan: action: expected 0 (Discrete(1)), got {action!r}")
+        self._check_step()
         self._k = min(self._k + 1, self.num_frames - 1)
         obs, info = self._observe()
         terminated = self._k >= self.num_frames - 1
+        self._step_done(terminated, False)
         return obs, 0.0, terminated, False, info
 
     def _observe(self):

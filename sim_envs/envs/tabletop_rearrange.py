@@ -3,6 +3,7 @@
 from __future__ import annotations
 
 import importlib
+import os
 import string
 from typing import Any
 
@@ -10,10 +11,13 @@ import gymnasium as gym
 import numpy as np
 from gymnasium import spaces
 
-from conceptfusion.errors import UnknownNameError
-from conceptfusion.names import did_you_mean
-from sim_envs.scenes.episodes import MAX_LINE_DISTANCE, Episode, EpisodeSet, load_episodes, resolve_scene, tabletop_goals, tabletop_instruction
+from conceptfusion.errors import SimError, SimTypeError
+from sim_envs.scenes.episodes import MAX_LINE_DISTANCE, Episode, EpisodeSet, resolve_scene, tabletop_goals, tabletop_instruction
 from conceptfusion.frames import RGBDFrame
+from sim_envs.envs.checks import (
+    EpisodeLifecycle, check_action, check_choice, check_episode, check_episode_set, check_fovy, check_image_size, check_int,
+    check_scenes_root, episode_from_options,
+)
 from sim_envs.envs.rearrange_eval import VIEW_DIR, RearrangeResult, evaluate, line_normal
 from sim_envs.envs.rendering import LastFrameRendering, check_render_mode, frame_spaces
 from sim_envs.envs.tabletop_sim import TabletopSim
@@ -39,9 +43,7 @@ _MAX_INSTRUCTION = 256
 
 
 def _backend_entry(name: str) -> str:
-    if name not in BACKENDS:
-        raise UnknownNameError(f"backend: expected one of {sorted(BACKENDS)}, got {name!r}" + did_you_mean(name, BACKENDS, n=1, cutoff=0.6))
-    return BACKENDS[name]
+    return BACKENDS[check_choice("TabletopRearrange", "backend", name, BACKENDS)]
 
 
 def make_backend(name: str, scene: Scene, seed: int = 0) -> TabletopSim:
@@ -62,7 +64,7 @@ def camera_pose(scene: Scene) -> tuple[tuple[float, float, float], tuple[float, 
     return (cx, cy - 0.72, top + 0.85), (cx, cy + 0.04, top)
 
 
-class TabletopRearrangeEnv(LastFrameRendering, gym.Env):
+class TabletopRearrangeEnv(EpisodeLifecycle, LastFrameRendering, gym.Env):
     """Push named objects across a dividing line on a table.
 
     **Task**: the instruction (e.g. ``"push the red mug to the right of the line"``) names one
@@ -113,10 +115,24 @@ class TabletopRearrangeEnv(LastFrameRendering, gym.Env):
     ``target_ids``, ``target_sides``, ``line``, ``right_normal``, ``view_dir``, ``table_xy`` (2, 2)
     (lower, upper table corner), ``scene_graph`` (MuJoCo backend; ``None`` otherwise), ``last_push``,
     ``evaluation``, ``success``, ``steps``, ``episode_id``, ``scene_id``.
+
+    **Input checks** (:mod:`sim_envs.envs.checks`): ``reset`` options are ``None`` or a dict
+    with ``"episode"`` (an :class:`~sim_envs.scenes.episodes.Episode`, checked field by field)
+    or ``"episode_index"`` (needs ``episodes=``), not both; other keys are refused naming the
+    nearest valid one. ``step`` refuses a bad action (above) and, once a step returned
+    ``terminated`` or ``truncated``, every call until ``reset``
+    (:class:`~conceptfusion.errors.EnvStateError`). Constructor arguments are checked:
+    ``backend`` a key of :data:`BACKENDS`; ``width``/``height`` and ``scan_width``/``scan_height``
+    ints in [1, 8192] (the scan sizes may be ``None``); ``fovy_deg`` in (0, 180);
+    ``max_steps`` an int >= 1; ``scan_frames`` an int >= 0; ``episodes`` an existing
+    ``tabletop_rearrange`` episode file or a non-empty ``EpisodeSet``; ``scene`` ``None`` or a
+    ``Scene``; ``scenes_root`` ``None`` or an existing folder.
     """
 
     metadata = {"render_modes": ["rgb_array"], "render_fps": 4}
     _renderer_attr = "sim"  # close() releases the simulation backend
+    env_name = "TabletopRearrange"
+    reset_option_keys = ("episode", "episode_index")
 
     def __init__(
         self,
@@ -134,20 +150,22 @@ class TabletopRearrangeEnv(LastFrameRendering, gym.Env):
         scan_height: int | None = None,
         render_mode: str | None = None,
     ) -> None:
+        where = self.env_name
         _backend_entry(backend)  # raises naming the valid backends
         check_render_mode(render_mode)
-        if width <= 0 or height <= 0:
-            raise ValueError(f"width, height: expected positive sizes, got {width}x{height}")
-        if scan_frames < 0:
-            raise ValueError(f"scan_frames: expected >= 0, got {scan_frames}")
-        if max_steps < 1:
-            raise ValueError(f"max_steps: expected >= 1, got {max_steps}")
-        if episodes is not None and not isinstance(episodes, EpisodeSet):
-            episodes = load_episodes(episodes, scenes_root=scenes_root)
-        if episodes is not None and episodes.task != "tabletop_rearrange":
-            raise ValueError(f"episodes: expected task 'tabletop_rearrange', got {episodes.task!r}")
-        self.backend, self.width, self.height, self.fovy_deg = backend, int(width), int(height), float(fovy_deg)
-        self.default_max_steps, self.render_mode = int(max_steps), render_mode
+        width, height = check_image_size(where, width, height)
+        scan_width, scan_height = check_image_size(where, scan_width, scan_height, prefix="scan_", allow_none=True)
+        fovy_deg = check_fovy(where, fovy_deg)
+        scan_frames = check_int(where, "scan_frames", scan_frames, minimum=0)
+        max_steps = check_int(where, "max_steps", max_steps, minimum=1)
+        scenes_root = check_scenes_root(where, scenes_root)
+        if scene is not None and not isinstance(scene, Scene):
+            raise SimTypeError(f"{where}: scene: expected None or a Scene, got {type(scene).__name__}")
+        if episodes is not None and not isinstance(episodes, (str, os.PathLike, EpisodeSet)):
+            raise SimTypeError(f"{where}: episodes: expected None, an episode file path or an EpisodeSet, got {type(episodes).__name__}")
+        episodes = check_episode_set(where, episodes, "tabletop_rearrange", scenes_root=scenes_root)
+        self.backend, self.width, self.height, self.fovy_deg = backend, width, height, fovy_deg
+        self.default_max_steps, self.render_mode = max_steps, render_mode
         self._episodes, self._fixed_scene, self._scenes_root = episodes, scene, scenes_root
         self.action_space = spaces.Box(ACTION_LOW, ACTION_HIGH, dtype=np.float32)
         self.observation_space = spaces.Dict(
@@ -172,41 +190,32 @@ class TabletopRearrangeEnv(LastFrameRendering, gym.Env):
         self.episode: Episode | None = None
         self._start_poses = None
         self._steps = 0
-        self._done = False
         self._last_frame: RGBDFrame | None = None
         self._last_push: dict = {}
         self._result: RearrangeResult | None = None
 
     # ----------------------------------------------------------------- episode set-up
     def _pick_episode(self, options: dict) -> tuple[Episode, Scene]:
-        if "episode" in options:
-            ep = options["episode"]
-            if not isinstance(ep, Episode):
-                raise TypeError(f"options['episode']: expected an Episode, got {type(ep).__name__}")
-        elif self._episodes is not None:
-            n = len(self._episodes.episodes)
-            i = options.get("episode_index", int(self.np_random.integers(n)))
-            if not isinstance(i, (int, np.integer)) or not 0 <= i < n:
-                raise ValueError(f"options['episode_index']: expected an integer in [0, {n}), got {i!r}")
-            ep = self._episodes.episodes[int(i)]
-        else:
+        episodes = self._episodes.episodes if self._episodes is not None else None
+        ep = episode_from_options(self.env_name, options, episodes, self.np_random)
+        if ep is None:
             goals: tuple = ()
             while not goals:  # a generated scene with no object near the line is redrawn
                 scene = self._fixed_scene or generate_tabletop(int(self.np_random.integers(0, 10_000)))
                 goals = tabletop_goals(scene, self.np_random)
                 if not goals and self._fixed_scene is not None:
-                    raise ValueError(f"scene {scene.id}: no object lies within {MAX_LINE_DISTANCE} m of the line to instruct")
+                    raise SimError(f"{self.env_name}: scene {scene.id}: no object lies within {MAX_LINE_DISTANCE} m of the line to instruct")
             ep = Episode(f"random-{scene.id}", scene.id, scene.seed, tabletop_instruction(scene, goals), goals, None, self.default_max_steps)
             return ep, scene
+        check_episode(self.env_name, ep, charset=INSTRUCTION_CHARSET, max_instruction=_MAX_INSTRUCTION, search=False)
         if self._fixed_scene is not None and ep.scene == self._fixed_scene.id:
             return ep, self._fixed_scene
         return ep, resolve_scene(ep.scene, ep.scene_seed, scenes_root=self._scenes_root)
 
     def reset(self, *, seed: int | None = None, options: dict[str, Any] | None = None):
+        seed, options = self._begin_reset(seed, options)
         super().reset(seed=seed)
-        ep, scene = self._pick_episode(dict(options or {}))
-        if len(ep.instruction) > _MAX_INSTRUCTION or any(c not in INSTRUCTION_CHARSET for c in ep.instruction):
-            raise ValueError(f"episode {ep.episode_id}: instruction must be <= {_MAX_INSTRUCTION} characters of {INSTRUCTION_CHARSET!r}, got {ep.instruction!r}")
+        ep, scene = self._pick_episode(options)
         for g in ep.goals:
             scene.object(g.object_id)  # KeyError naming the valid ids
         if self.sim is not None:
@@ -214,21 +223,16 @@ class TabletopRearrangeEnv(LastFrameRendering, gym.Env):
         self.sim = make_backend(self.backend, scene, seed=int(self.np_random.integers(0, 2**31 - 1)))
         self.episode = ep
         self._start_poses = self.sim.object_poses()
-        self._steps, self._done = 0, False
+        self._steps = 0
         self._last_push = {}
-        return self._observe()
+        out = self._observe()
+        self._episode_started()
+        return out
 
     # ----------------------------------------------------------------- stepping
     def step(self, action):
-        if self.sim is None:
-            raise RuntimeError("TabletopRearrange: call reset() before step()")
-        if self._done:
-            raise RuntimeError("TabletopRearrange: the episode is over; call reset()")
-        a = np.asarray(action, dtype=np.float64)
-        if a.shape != (5,):
-            raise ValueError(f"action: expected shape (5,) (start_x, start_y, direction_rad, distance, stop), got shape {a.shape}")
-        if not np.all(np.isfinite(a)):
-            raise ValueError(f"action: expected finite numbers, got {a.tolist()}")
+        a = check_action(self.env_name, action, 5, "(start_x, start_y, direction_rad, distance, stop)")
+        self._check_step()
         wrapped = (a[2] + np.pi) % (2 * np.pi) - np.pi
         clipped = np.clip(np.array([a[0], a[1], wrapped, a[3], a[4]]), ACTION_LOW, ACTION_HIGH).astype(np.float64)
         stop = bool(clipped[4] > 0.5)
@@ -245,12 +249,17 @@ class TabletopRearrangeEnv(LastFrameRendering, gym.Env):
         terminated = stop
         truncated = not stop and self._steps >= self.episode.max_steps
         obs, info = self._observe()
-        self._done = terminated or truncated
-        reward = 1.0 if self._done and info["success"] else 0.0
+        done = terminated or truncated
+        reward = 1.0 if done and info["success"] else 0.0
+        self._step_done(terminated, truncated)
         return obs, reward, terminated, truncated, info
 
     def evaluate(self) -> RearrangeResult:
         """Success judgement of the current state (see the class docstring)."""
+        self._require_reset("evaluate()")
+        return self._evaluate()
+
+    def _evaluate(self) -> RearrangeResult:
         return evaluate(self.sim.scene, self._start_poses, self.sim.object_poses(), self.episode.goals)
 
     def _observe(self):
@@ -258,11 +267,11 @@ class TabletopRearrangeEnv(LastFrameRendering, gym.Env):
         eye, target = camera_pose(scene)
         f = self.sim.render(eye, target, self.width, self.height, self.fovy_deg, True)
         self._last_frame = f
-        self._result = self.evaluate()
+        self._result = self._evaluate()
         obs = {**f.observation(), "instruction": self.episode.instruction, "line": np.asarray(scene.line, np.float64)[:, :2].copy()}
         scan_seg = None
         if self.scan_frames:
-            frames = self.scan(self.scan_frames, width=self.scan_width, height=self.scan_height, segmentation=True)
+            frames = self._scan(self.scan_frames, self.scan_width, self.scan_height, True)
             obs["scan_rgb"] = np.stack([fr.rgb for fr in frames])
             obs["scan_depth"] = np.stack([fr.depth for fr in frames]).astype(np.float32)
             obs["scan_K"] = np.stack([fr.K for fr in frames]).astype(np.float64)
@@ -302,9 +311,10 @@ class TabletopRearrangeEnv(LastFrameRendering, gym.Env):
         Frames follow the observation conventions (OpenCV, metric depth). ``segmentation=True``
         adds ground-truth instance masks, for scoring and privileged agents only.
         """
-        if self.sim is None:
-            raise RuntimeError("TabletopRearrange: call reset() before scan()")
-        if num_frames < 1:
-            raise ValueError(f"num_frames: expected at least 1, got {num_frames}")
-        w, h = int(width or self.width), int(height or self.height)
+        self._require_reset("scan()")
+        num_frames = check_int(self.env_name, "num_frames", num_frames, minimum=1)
+        width, height = check_image_size(self.env_name, width, height, allow_none=True)
+        return self._scan(num_frames, width or self.width, height or self.height, bool(segmentation))
+
+    def _scan(self, num_frames: int, w: int, h: int, segmentation: bool) -> list[RGBDFrame]:
         return [self.sim.render(eye, tgt, w, h, self.fovy_deg, segmentation) for eye, tgt in orbit_trajectory(self.sim.scene, num_frames)]

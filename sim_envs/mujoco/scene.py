@@ -12,6 +12,8 @@ import mujoco  # noqa: E402
 
 from sim_envs.assets.objects import ALL_ASSETS, COLORS, MESH_ASSETS, material_xml  # noqa: E402
 from sim_envs.assets.meshes import mesh_asset_xml  # noqa: E402
+from sim_envs.assets.library.catalogue import is_library_asset  # noqa: E402
+from sim_envs.assets.library.mjcf import library_asset_xml, library_geoms  # noqa: E402
 from sim_envs.mujoco.household import household_assets_xml, household_body_xml  # noqa: E402
 from sim_envs.scenes.format import Scene  # noqa: E402
 
@@ -81,6 +83,9 @@ def build_mjcf(scene: Scene) -> str:
     meshes = [(o.asset, o.size) for o in scene.objects if o.asset in MESH_ASSETS]
     if meshes:
         mats.append(mesh_asset_xml(meshes))
+    library = [(o.asset, o.size) for o in scene.objects if is_library_asset(o.asset)]
+    if library:
+        mats.append(library_asset_xml(library))
     # Shadow maps dominate software rendering (10x); lights cast none.
     if scene.is_household:
         mats.append(household_assets_xml())
@@ -106,7 +111,10 @@ def build_mjcf(scene: Scene) -> str:
                 f'size="0.008 {abs(y1 - y0) / 2} 0.0005" material="line" contype="0" conaffinity="0"/>'
             )
     for o in scene.objects:
-        geoms = ALL_ASSETS[o.asset].geoms(o.size, f"paint_{o.color}")
+        if is_library_asset(o.asset):
+            geoms = library_geoms(o.asset, o.size)
+        else:
+            geoms = ALL_ASSETS[o.asset].geoms(o.size, f"paint_{o.color}")
         x, y, z = o.position
         body.append(
             f'<body name="{o.id}" pos="{x} {y} {z + 0.001}" euler="0 0 {o.yaw}"><freejoint name="{o.id}_joint"/>'

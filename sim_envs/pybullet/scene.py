@@ -2,7 +2,8 @@
 
 Objects get the same shapes as in MuJoCo: procedural kinds are read from the MJCF geoms of
 :mod:`sim_envs.assets.objects` (boxes, cylinders, capsules, spheres become one compound body), mesh
-kinds load the normalised meshes of :mod:`sim_envs.assets.meshes`. Surfaces carry textures
+kinds load the normalised meshes of :mod:`sim_envs.assets.meshes`, object library instances
+(``"lib:<id>"``) their URDF (:mod:`sim_envs.assets.library.urdf`). Surfaces carry textures
 (gradients and checkers in the object's colour, written as small PNGs into the asset cache),
 not flat colours.
 """
@@ -18,6 +19,8 @@ import numpy as np
 from conceptfusion.io_utils import atomic_write_bytes
 from sim_envs.assets.objects import COLORS, get_asset
 from sim_envs.assets.meshes import cache_dir, mesh_texture, normalized_mesh
+from sim_envs.assets.library.catalogue import is_library_asset
+from sim_envs.assets.library.urdf import load_instance
 from sim_envs.scenes.format import Scene, SceneObject
 
 __all__ = ["PyBulletScene", "build_pybullet", "texture_png", "OBJECT_FRICTION"]
@@ -162,6 +165,14 @@ def _compound(shapes: list[dict], client: int) -> tuple[int, int]:
 def _object_body(o: SceneObject, client: int) -> int:
     import pybullet as p
 
+    if is_library_asset(o.asset):  # object library instance: its URDF (textured mesh, convex pieces)
+        x, y, z = o.position
+        body = load_instance(o.asset, client, (x, y, z + 0.001), o.yaw, o.size)
+        p.changeDynamics(
+            body, -1, lateralFriction=OBJECT_FRICTION, spinningFriction=0.001, rollingFriction=0.0001,
+            linearDamping=0.04, angularDamping=0.04, physicsClientId=client,
+        )
+        return body
     asset = get_asset(o.asset)
     size = tuple(float(s) for s in o.size)
     if asset.mesh is not None:

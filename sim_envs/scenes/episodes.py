@@ -25,7 +25,8 @@ from pathlib import Path
 
 import numpy as np
 
-from conceptfusion.errors import SimError
+from conceptfusion.errors import MissingFileError, SimError
+from conceptfusion.names import did_you_mean
 from conceptfusion.io_utils import atomic_write_text
 from sim_envs.envs.rearrange_eval import signed_line_distance
 from sim_envs.scenes.format import Scene, load_scene
@@ -106,54 +107,111 @@ def _resolve_scene_cached(ref: str, scene_seed: int, root: str) -> Scene:
     if ref.endswith(".json"):
         path = base / ref
         if not path.is_file():
-            raise FileNotFoundError(f"scene file {path} does not exist (scene {ref!r}, relative to {base})")
+            raise MissingFileError(f"scene file {path} does not exist (scene {ref!r}, relative to {base})")
         return load_scene(path)
     found = sorted(base.rglob(f"{ref}.json")) if base.is_dir() else []
     if found:
         return load_scene(found[0])
     if ref.startswith("tabletop-"):
         return generate_tabletop(scene_seed)
-    raise FileNotFoundError(f"scene {ref!r}: no file {ref}.json under {base}, and only tabletop-NNNN ids can be generated")
+    raise MissingFileError(f"scene {ref!r}: no file {ref}.json under {base}, and only tabletop-NNNN ids can be generated")
+
+
+_EPISODE_FIELDS = ("episode_id", "scene", "scene_seed", "instruction", "goals", "start_pose", "max_steps")
+_HEADER_FIELDS = ("format", "version", "task", "generator_seed")
+
+
+def _is_int(v) -> bool:
+    return isinstance(v, int) and not isinstance(v, bool)
 
 
 def _field(d: dict, key: str, kind, where: str):
     if key not in d:
         raise EpisodeFormatError(f"{where}: missing field {key!r}")
     v = d[key]
-    if kind is int and (isinstance(v, bool) or not isinstance(v, int)):
+    if kind is int and not _is_int(v):
         raise EpisodeFormatError(f"{where}: {key!r} expected an integer, got {v!r}")
-    if kind is str and (not isinstance(v, str) or not v):
+    if kind is str and (not isinstance(v, str) or not v.strip()):
         raise EpisodeFormatError(f"{where}: {key!r} expected a non-empty string, got {v!r}")
     return v
+
+
+def _check_keys(d: dict, allowed: tuple[str, ...], where: str) -> None:
+    for k in d:
+        if k not in allowed:
+            raise EpisodeFormatError(f"{where}: unknown field {k!r}{did_you_mean(k, allowed)} (fields: {', '.join(allowed)})")
 
 
 def _parse_episode(d, task: str, where: str) -> Episode:
     if not isinstance(d, dict):
         raise EpisodeFormatError(f"{where}: expected a JSON object, got {type(d).__name__}")
+    _check_keys(d, _EPISODE_FIELDS, where)
     goals_raw = _field(d, "goals", list, where)
     if not isinstance(goals_raw, list) or not goals_raw:
         raise EpisodeFormatError(f"{where}: 'goals' expected a non-empty list, got {goals_raw!r}")
-    goals = []
+    goals, ids = [], []
     for k, g in enumerate(goals_raw):
-        if not isinstance(g, dict) or not isinstance(g.get("object_id"), str):
+        if not isinstance(g, dict) or not isinstance(g.get("object_id"), str) or not g["object_id"]:
             raise EpisodeFormatError(f"{where}: goals[{k}] expected {{'object_id': str, ...}}, got {g!r}")
+        _check_keys(g, ("object_id", "side"), f"{where}: goals[{k}]")
         side = g.get("side")
         if task == "tabletop_rearrange" and side not in SIDES:
             raise EpisodeFormatError(f"{where}: goals[{k}].side expected one of {SIDES}, got {side!r}")
+        if task != "tabletop_rearrange" and side is not None:
+            raise EpisodeFormatError(f"{where}: goals[{k}].side expected no side for task {task!r}, got {side!r}")
+        if g["object_id"] in ids:
+            raise EpisodeFormatError(f"{where}: goals[{k}].object_id {g['object_id']!r} repeats goals[{ids.index(g['object_id'])}]")
+        ids.append(g["object_id"])
         goals.append(Goal(g["object_id"], side))
     pose = d.get("start_pose")
     if pose is not None:
-        if not isinstance(pose, list) or len(pose) != 3 or not all(isinstance(v, (int, float)) and np.isfinite(v) for v in pose):
+        if not isinstance(pose, list) or len(pose) != 3 or not all(
+            isinstance(v, (int, float)) and not isinstance(v, bool) and np.isfinite(v) for v in pose
+        ):
             raise EpisodeFormatError(f"{where}: 'start_pose' expected null or [x, y, yaw] (3 finite numbers), got {pose!r}")
         pose = tuple(float(v) for v in pose)
     max_steps = _field(d, "max_steps", int, where)
     if max_steps < 1:
         raise EpisodeFormatError(f"{where}: 'max_steps' expected >= 1, got {max_steps}")
+    scene_seed = _field(d, "scene_seed", int, where)
+    if scene_seed < 0:
+        raise EpisodeFormatError(f"{where}: 'scene_seed' expected >= 0, got {scene_seed}")
     return Episode(
         episode_id=_field(d, "episode_id", str, where), scene=_field(d, "scene", str, where),
-        scene_seed=_field(d, "scene_seed", int, where), instruction=_field(d, "instruction", str, where),
+        scene_seed=scene_seed, instruction=_field(d, "instruction", str, where),
         goals=tuple(goals), start_pose=pose, max_steps=max_steps,
     )
+
+
+def _read_lines(p: Path) -> list[str]:
+    if not p.is_file():
+        if p.exists():
+            raise EpisodeFormatError(f"{p}: expected an episode file, got a {'folder' if p.is_dir() else 'special file'}")
+        raise MissingFileError(f"episode file not found: {p}")
+    data = p.read_bytes()
+    try:
+        text = data.decode("utf-8")
+    except UnicodeDecodeError as exc:
+        line = data[: exc.start].count(b"\n") + 1
+        raise EpisodeFormatError(f"{p}:line {line}: not an episode file: not UTF-8 text (byte 0x{data[exc.start]:02x})") from None
+    return text.splitlines()
+
+
+def _parse_header(header, where: str) -> tuple[str, int | None]:
+    if not isinstance(header, dict) or header.get("format") != FORMAT:
+        got = header.get("format") if isinstance(header, dict) else header
+        raise EpisodeFormatError(f"{where}: expected a header with format {FORMAT!r}, got {got!r}")
+    version = header.get("version")
+    if not _is_int(version) or version < 1 or version > VERSION:
+        raise EpisodeFormatError(f"{where}: expected version <= {VERSION} (an integer >= 1), got {version!r}")
+    _check_keys(header, _HEADER_FIELDS, f"{where}: header")
+    task = header.get("task")
+    if task not in TASKS:
+        raise EpisodeFormatError(f"{where}: expected task in {TASKS}, got {task!r}")
+    seed = header.get("generator_seed")
+    if seed is not None and not _is_int(seed):
+        raise EpisodeFormatError(f"{where}: 'generator_seed' expected an integer or null, got {seed!r}")
+    return task, seed
 
 
 def load_episodes(
@@ -161,33 +219,29 @@ def load_episodes(
 ) -> EpisodeSet:
     """Read and validate an episode file.
 
-    Raises :class:`EpisodeFormatError` naming the file and the 1-based line number for a line
-    that is not JSON or not a valid record, a bad header, or a duplicate episode id; with
-    ``check_scenes`` every scene is resolved (:func:`resolve_scene`) and every goal object id
-    must exist in it.
+    Raises :class:`EpisodeFormatError` naming the file, the 1-based line number and the field
+    for a file that is not UTF-8 text, a line that is not JSON (NaN and infinities included) or
+    not a valid record (a missing or unknown field, a value of the wrong type or range), a bad
+    header, or a duplicate episode id; with ``check_scenes`` every scene is resolved
+    (:func:`resolve_scene`; a missing or invalid scene is an :class:`EpisodeFormatError` naming
+    the line) and every goal object id must exist in it. A missing file raises
+    :class:`~conceptfusion.errors.MissingFileError`.
     """
     p = Path(path)
-    lines = p.read_text(encoding="utf-8").splitlines()
     records = []
-    for no, line in enumerate(lines, start=1):
+    for no, line in enumerate(_read_lines(p), start=1):
         if not line.strip():
             continue
         try:
-            records.append((no, json.loads(line)))
+            records.append((no, json.loads(line, parse_constant=_refuse_constant)))
         except json.JSONDecodeError as exc:
             raise EpisodeFormatError(f"{p}:line {no}: not valid JSON ({exc.msg} at column {exc.colno})") from exc
+        except (ValueError, RecursionError) as exc:
+            raise EpisodeFormatError(f"{p}:line {no}: not valid JSON ({exc})") from None
     if not records:
         raise EpisodeFormatError(f"{p}: expected a header line, got an empty file")
     no, header = records[0]
-    if not isinstance(header, dict) or header.get("format") != FORMAT:
-        got = header.get("format") if isinstance(header, dict) else header
-        raise EpisodeFormatError(f"{p}:line {no}: expected a header with format {FORMAT!r}, got {got!r}")
-    if not isinstance(header.get("version"), int) or header["version"] > VERSION:
-        raise EpisodeFormatError(f"{p}:line {no}: expected version <= {VERSION}, got {header.get('version')!r}")
-    task = header.get("task")
-    if task not in TASKS:
-        raise EpisodeFormatError(f"{p}:line {no}: expected task in {TASKS}, got {task!r}")
-    seed = header.get("generator_seed")
+    task, seed = _parse_header(header, f"{p}:line {no}")
     episodes, seen = [], set()
     for no, rec in records[1:]:
         where = f"{p}:line {no}"
@@ -199,7 +253,7 @@ def load_episodes(
             try:
                 scene = resolve_scene(ep.scene, ep.scene_seed, scenes_root=scenes_root)
             except (OSError, ValueError) as exc:
-                raise EpisodeFormatError(f"{where}: episode {ep.episode_id!r}: {exc}") from exc
+                raise EpisodeFormatError(f"{where}: episode {ep.episode_id!r}: field 'scene': {exc}") from exc
             ids = [o.id for o in scene.objects]
             for g in ep.goals:
                 if g.object_id not in ids:
@@ -207,7 +261,11 @@ def load_episodes(
                         f"{where}: episode {ep.episode_id!r} names object {g.object_id!r}, which scene {scene.id!r} lacks (objects: {ids})"
                     )
         episodes.append(ep)
-    return EpisodeSet(task, seed if isinstance(seed, int) else None, tuple(episodes))
+    return EpisodeSet(task, seed, tuple(episodes))
+
+
+def _refuse_constant(name: str):
+    raise ValueError(f"{name} is not a number JSON allows")
 
 
 def episodes_text(episodes: EpisodeSet) -> str:

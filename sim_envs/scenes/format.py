@@ -16,24 +16,34 @@ door openings, ``furniture`` and, per object, an optional ``support`` (a furnitu
 object id or ``"floor"``). A scene without these parts is still written as version 1, and
 version 1 files load as before.
 
-Loading validates everything and raises ``ValueError`` naming the problem: malformed JSON,
-another format or a newer version, an unknown asset, colour, material or furniture kind, a
-duplicate id, two objects on the same support whose footprints overlap, a missing support, or
-an object whose base is not on its support's surface (within 1 cm).
+Loading validates everything, field by field, and raises
+:class:`~conceptfusion.errors.SceneFormatError` (a ``ValueError``) naming the file and the field:
+a file that is not UTF-8 or malformed JSON, another format or a newer version, a field of the
+wrong type (a number where a string is expected is refused, not converted), a NaN or infinite
+number, a non-positive size, an unknown asset, colour, material or furniture kind, a duplicate
+id, two objects on the same support whose footprints overlap, a missing support, an object
+whose base is not on its support's surface (within 1 cm), or, in a scene with a table, an
+object without a support whose centre is off the table top or whose base is not on it (1 cm).
+A missing file raises :class:`~conceptfusion.errors.MissingFileError`.
 """
 
 from __future__ import annotations
 
 import json
 import os
-from dataclasses import asdict, dataclass, field
+from dataclasses import asdict, dataclass, field, fields
 from pathlib import Path
 
 import numpy as np
 
 from conceptfusion.io_utils import atomic_write_text
 from sim_envs.assets.objects import ALL_ASSETS, COLORS
-from sim_envs.scenes.household_format import Furniture, Room, Wall, check_supports, parse_furniture, parse_rooms, parse_vector, parse_walls
+from sim_envs.assets.library.catalogue import is_library_asset, scene_instance
+from conceptfusion.errors import MissingFileError, SceneFormatError
+from sim_envs.scenes.household_format import (
+    Furniture, Room, Wall, check_fields, check_supports, parse_furniture, parse_list, parse_material, parse_number, parse_phrases, parse_rooms,
+    parse_text, parse_vector, parse_walls,
+)
 
 __all__ = ["SceneObject", "Table", "Scene", "Room", "Wall", "Furniture", "load_scene", "save_scene", "scene_from_json", "FORMAT", "VERSION"]
 
@@ -146,51 +156,122 @@ def _object_json(o: SceneObject) -> dict:
     return d
 
 
-def scene_from_json(d: dict, *, source: str = "scene", overlap_tol: float = 0.002) -> Scene:
-    """Validate a parsed scene document and build a :class:`Scene`."""
+_OBJECT_FIELDS = tuple(f.name for f in fields(SceneObject))
+_SCENE_FIELDS = ("format", "version", "id", "kind", "seed", "table", "line", "objects", "rooms", "walls", "furniture", "extras")
+
+
+def _parse_table(t, source: str) -> Table:
+    where = f"{source}: table"
+    if not isinstance(t, dict):
+        raise SceneFormatError(f"{where}: expected an object {{center, size, material}} or null, got {type(t).__name__} {t!r}")
+    check_fields(where, t, ("center", "size"), ("center", "size", "material"))
+    size = parse_vector(f"{where}.size", t["size"], 3)
+    if min(size) <= 0:
+        raise SceneFormatError(f"{where}.size: expected positive sizes, got {list(size)}")
+    return Table(parse_vector(f"{where}.center", t["center"], 3), size, parse_material(f"{where}.material", t.get("material", "wood")))
+
+
+def _parse_line(ln, source: str) -> tuple[tuple[float, float], tuple[float, float]]:
+    where = f"{source}: line"
+    if not isinstance(ln, dict):
+        raise SceneFormatError(f"{where}: expected an object {{start, end}} or null, got {type(ln).__name__} {ln!r}")
+    check_fields(where, ln, ("start", "end"), ("start", "end"))
+    start, end = parse_vector(f"{where}.start", ln.get("start"), 2), parse_vector(f"{where}.end", ln.get("end"), 2)
+    if start == end:
+        raise SceneFormatError(f"{where}: start and end coincide at {list(start)}")
+    return start, end
+
+
+def _parse_object(o, where: str) -> SceneObject:
+    if not isinstance(o, dict):
+        raise SceneFormatError(f"{where}: expected an object, got {type(o).__name__}")
+    check_fields(where, o, ("id", "name", "category", "asset", "color", "position", "size"), _OBJECT_FIELDS)
+    oid = parse_text(f"{where}.id", o["id"])
+    if is_library_asset(o["asset"]):  # "lib:<id>": an object library instance, in its own colour
+        scene_instance(o["asset"], o["color"], where, error=SceneFormatError)
+    elif not isinstance(o["asset"], str) or o["asset"] not in ALL_ASSETS:
+        raise SceneFormatError(f"{where}.asset: unknown asset {o['asset']!r}; known assets: {sorted(ALL_ASSETS)}")
+    elif not isinstance(o["color"], str) or o["color"] not in COLORS:
+        raise SceneFormatError(f"{where}.color: unknown colour {o['color']!r}; known colours: {sorted(COLORS)}")
+    size = parse_vector(f"{where}.size", o["size"], 3)
+    if min(size) <= 0:
+        raise SceneFormatError(f"{where}.size: expected positive sizes, got {list(size)}")
+    support = o.get("support")
+    return SceneObject(
+        id=oid, name=parse_text(f"{where}.name", o["name"]), category=parse_text(f"{where}.category", o["category"]),
+        asset=o["asset"], color=o["color"], position=parse_vector(f"{where}.position", o["position"], 3),
+        yaw=parse_number(f"{where}.yaw", o.get("yaw", 0.0)), size=size,
+        phrases=parse_phrases(f"{where}.phrases", o.get("phrases")),
+        support=None if support is None else parse_text(f"{where}.support", support),
+    )
+
+
+def _check_on_table(objects, table: Table, source: str, tol: float) -> None:
+    """Objects without a recorded support stand on the table top: centre over it, base on it."""
+    (cx, cy, _), (sx, sy, _) = table.center, table.size
+    for i, o in enumerate(objects):
+        if o.support is not None:
+            continue
+        x, y, z = o.position
+        where = f"{source}: objects[{i}] ({o.id!r}, {o.name})"
+        if abs(x - cx) > sx / 2 + tol or abs(y - cy) > sy / 2 + tol:
+            raise SceneFormatError(
+                f"{where}: off the table: its centre ({x:.3f}, {y:.3f}) is outside the table top "
+                f"x in [{cx - sx / 2:.3f}, {cx + sx / 2:.3f}], y in [{cy - sy / 2:.3f}, {cy + sy / 2:.3f}] (tolerance {tol} m)"
+            )
+        if abs(z - table.top_z) > tol:
+            raise SceneFormatError(
+                f"{where}: floats: base at z={z:.3f}, but the table top is at z={table.top_z:.3f} (tolerance {tol} m)"
+            )
+
+
+def scene_from_json(d: dict, *, source: str = "scene", overlap_tol: float = 0.002, support_tol: float = 0.01) -> Scene:
+    """Validate a parsed scene document and build a :class:`Scene`.
+
+    Every field is checked for its type (no conversion: ``"id": 5`` is refused, not read as
+    ``"5"``), finiteness and range; an error is a :class:`~conceptfusion.errors.SceneFormatError`
+    (a ``ValueError``) whose message starts with ``source`` and names the field
+    (``objects[2].yaw``). Objects with a ``support`` must rest on it (within ``support_tol``);
+    objects without one, in a scene with a table, must stand on the table top (centre over it,
+    base within ``support_tol`` of its height).
+    """
     if not isinstance(d, dict) or d.get("format") != FORMAT:
         got = d.get("format") if isinstance(d, dict) else type(d).__name__
-        raise ValueError(f"{source}: expected format {FORMAT!r}, got {got!r}")
-    if not isinstance(d.get("version"), int) or d["version"] > VERSION:
-        raise ValueError(f"{source}: expected format version <= {VERSION}, got {d.get('version')!r}")
-    table = None
-    if d.get("table"):
-        t = d["table"]
-        table = Table(parse_vector("table.center", t.get("center"), 3), parse_vector("table.size", t.get("size"), 3), str(t.get("material", "wood")))
+        raise SceneFormatError(f"{source}: expected format {FORMAT!r}, got {got!r}")
+    version = d.get("version")
+    if isinstance(version, bool) or not isinstance(version, int) or version < 1:
+        raise SceneFormatError(f"{source}: version: expected an integer format version >= 1, got {version!r}")
+    if version > VERSION:
+        raise SceneFormatError(f"{source}: expected format version <= {VERSION}, got {version!r}")
+    check_fields(source, d, (), _SCENE_FIELDS)
+    scene_id = parse_text(f"{source}: id", d.get("id", ""), allow_empty=True)
+    kind = parse_text(f"{source}: kind", d.get("kind", ""), allow_empty=True)
+    seed = d.get("seed", 0)
+    if isinstance(seed, bool) or not isinstance(seed, int):
+        raise SceneFormatError(f"{source}: seed: expected an integer, got {seed!r}")
+    extras = d.get("extras", {})
+    if not isinstance(extras, dict):
+        raise SceneFormatError(f"{source}: extras: expected an object, got {type(extras).__name__} {extras!r}")
+    table = None if d.get("table") is None else _parse_table(d["table"], source)
+    line = None if d.get("line") is None else _parse_line(d["line"], source)
     objects, seen = [], set()
-    for i, o in enumerate(d.get("objects") or []):
+    for i, o in enumerate(parse_list(f"{source}: objects", d.get("objects"))):
         where = f"{source}: objects[{i}]"
-        if not isinstance(o, dict):
-            raise ValueError(f"{where}: expected an object, got {type(o).__name__}")
-        for key in ("id", "name", "category", "asset", "color", "position", "size"):
-            if key not in o:
-                raise ValueError(f"{where}: missing field {key!r}")
-        if o["asset"] not in ALL_ASSETS:
-            raise ValueError(f"{where}: unknown asset {o['asset']!r}; known assets: {sorted(ALL_ASSETS)}")
-        if o["color"] not in COLORS:
-            raise ValueError(f"{where}: unknown colour {o['color']!r}; known colours: {sorted(COLORS)}")
-        if o["id"] in seen:
-            raise ValueError(f"{where}: duplicate object id {o['id']!r}")
-        seen.add(o["id"])
-        size = parse_vector(f"{where}.size", o["size"], 3)
-        if min(size) <= 0:
-            raise ValueError(f"{where}.size: expected positive sizes, got {size}")
-        objects.append(
-            SceneObject(
-                id=str(o["id"]), name=str(o["name"]), category=str(o["category"]), asset=str(o["asset"]),
-                color=str(o["color"]), position=parse_vector(f"{where}.position", o["position"], 3),
-                yaw=float(o.get("yaw", 0.0)), size=size, phrases=tuple(str(p) for p in o.get("phrases", ())),
-                support=None if o.get("support") is None else str(o["support"]),
-            )
-        )
+        obj = _parse_object(o, where)
+        if obj.id in seen:
+            raise SceneFormatError(f"{where}: duplicate object id {obj.id!r}")
+        seen.add(obj.id)
+        objects.append(obj)
     rooms, walls, furniture = parse_rooms(d, source), parse_walls(d, source), parse_furniture(d, source)
     ids: set[str] = set()
-    for kind, items in (("room", rooms), ("wall", walls), ("furniture", furniture), ("object", objects)):
+    for kind_name, items in (("room", rooms), ("wall", walls), ("furniture", furniture), ("object", objects)):
         for it in items:
             if it.id in ids:
-                raise ValueError(f"{source}: duplicate id {it.id!r} ({kind}); ids must be unique across rooms, walls, furniture and objects")
+                raise SceneFormatError(f"{source}: duplicate id {it.id!r} ({kind_name}); ids must be unique across rooms, walls, furniture and objects")
             ids.add(it.id)
-    check_supports(objects, furniture, source)
+    check_supports(objects, furniture, source, tol=support_tol)
+    if table is not None:
+        _check_on_table(objects, table, source, support_tol)
     for a_i, a in enumerate(objects):  # footprints of objects on the same support and level must not overlap
         la, ha = a.footprint()
         for b in objects[a_i + 1 :]:
@@ -198,23 +279,34 @@ def scene_from_json(d: dict, *, source: str = "scene", overlap_tol: float = 0.00
             same_level = a.support == b.support and abs(a.position[2] - b.position[2]) < 0.05
             if same_level and np.all(np.minimum(ha, hb) - np.maximum(la, lb) > overlap_tol):
                 where = f" on {a.support!r}" if a.support else ""
-                raise ValueError(f"{source}: objects {a.id!r} ({a.name}) and {b.id!r} ({b.name}) overlap{where}")
-    line = None
-    if d.get("line"):
-        line = (parse_vector("line.start", d["line"].get("start"), 2), parse_vector("line.end", d["line"].get("end"), 2))
-    return Scene(
-        str(d.get("id", "")), str(d.get("kind", "")), int(d.get("seed", 0)), table, tuple(objects), line, d.get("extras", {}),
-        rooms, walls, furniture,
-    )
+                raise SceneFormatError(f"{source}: objects {a.id!r} ({a.name}) and {b.id!r} ({b.name}) overlap{where}")
+    return Scene(scene_id, kind, seed, table, tuple(objects), line, extras, rooms, walls, furniture)
 
 
 def load_scene(path: str | os.PathLike) -> Scene:
-    """Read and validate a scene file."""
+    """Read and validate a scene file.
+
+    Raises :class:`~conceptfusion.errors.MissingFileError` (a ``FileNotFoundError``) when there
+    is no such file, and :class:`~conceptfusion.errors.SceneFormatError` (a ``ValueError``)
+    naming the file, and the line or field, for a file that is not UTF-8 JSON text or not a
+    valid scene (see :func:`scene_from_json`).
+    """
     p = Path(path)
+    if not p.is_file():
+        if p.exists():
+            raise SceneFormatError(f"{p}: expected a scene file, got a {'folder' if p.is_dir() else 'special file'}")
+        raise MissingFileError(f"scene file not found: {p}")
+    data = p.read_bytes()
     try:
-        doc = json.loads(p.read_text())
+        text = data.decode("utf-8")
+    except UnicodeDecodeError as exc:
+        raise SceneFormatError(f"{p}: not a scene file: not UTF-8 text (byte 0x{data[exc.start]:02x} at offset {exc.start})") from None
+    try:
+        doc = json.loads(text)
     except json.JSONDecodeError as exc:
-        raise ValueError(f"{p}: malformed JSON at line {exc.lineno}: {exc.msg}") from exc
+        raise SceneFormatError(f"{p}: malformed JSON at line {exc.lineno}: {exc.msg}") from exc
+    except RecursionError:
+        raise SceneFormatError(f"{p}: malformed JSON: nested too deeply") from None
     return scene_from_json(doc, source=str(p))
 
 

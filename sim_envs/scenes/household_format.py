@@ -21,14 +21,17 @@ object) or ``"floor"``.
 from __future__ import annotations
 
 import math
-from dataclasses import dataclass
+from dataclasses import dataclass, fields
 
 import numpy as np
 
+from conceptfusion.errors import SceneFormatError
+from conceptfusion.names import did_you_mean
 from sim_envs.assets.furniture import FURNITURE, MATERIALS, Surface
 
 __all__ = [
-    "parse_vector",
+    "parse_vector", "parse_number", "parse_text", "parse_list", "parse_phrases", "parse_material",
+    "check_fields",
     "Room", "Wall", "Furniture", "CONTAINER_FLOOR", "parse_rooms", "parse_walls", "parse_furniture",
     "check_supports", "support_surface_z",
 ]
@@ -123,47 +126,103 @@ class Furniture:
         return xy - half, xy + half
 
 
+_FIELDS = {cls: tuple(f.name for f in fields(cls)) for cls in (Room, Wall, Furniture)}
+
+
+def _is_number(x) -> bool:
+    return isinstance(x, (int, float)) and not isinstance(x, bool)
+
+
 def parse_vector(name: str, value, n: int) -> tuple[float, ...]:
-    """``value`` as ``n`` finite floats; ``ValueError`` naming the field ``name`` otherwise."""
-    try:
-        v = tuple(float(x) for x in value)
-    except (TypeError, ValueError):
-        raise ValueError(f"{name}: expected {n} numbers, got {value!r}") from None
-    if len(v) != n or not all(np.isfinite(v)):
-        raise ValueError(f"{name}: expected {n} finite numbers, got {value!r}")
+    """``value`` as ``n`` finite floats; :class:`SceneFormatError` naming the field ``name`` otherwise.
+
+    Only a JSON list of numbers is accepted: a string, a bool or a number in quotes is refused
+    rather than converted.
+    """
+    if not isinstance(value, (list, tuple)) or not all(_is_number(x) for x in value):
+        raise SceneFormatError(f"{name}: expected a list of {n} numbers, got {value!r}")
+    v = tuple(float(x) for x in value)
+    if len(v) != n or not all(math.isfinite(x) for x in v):
+        raise SceneFormatError(f"{name}: expected {n} finite numbers, got {value!r}")
     return v
 
 
-def _material(where: str, name) -> str:
-    if name not in MATERIALS:
-        raise ValueError(f"{where}: unknown material {name!r}; known materials: {list(MATERIALS)}")
-    return str(name)
+def parse_number(name: str, value, *, positive: bool = False) -> float:
+    """``value`` as one finite float (``positive``: also > 0); :class:`SceneFormatError` naming ``name``."""
+    if not _is_number(value) or not math.isfinite(value):
+        raise SceneFormatError(f"{name}: expected a finite number, got {value!r}")
+    if positive and not value > 0:
+        raise SceneFormatError(f"{name}: expected a positive number, got {value!r}")
+    return float(value)
 
 
-def _entries(d: dict, key: str, source: str, required: tuple[str, ...]):
-    for i, e in enumerate(d.get(key) or []):
+def parse_text(name: str, value, *, allow_empty: bool = False) -> str:
+    """``value`` if it is a string (non-empty unless ``allow_empty``); :class:`SceneFormatError` naming ``name``.
+
+    Numbers are refused rather than converted (``"id": 5`` is not the id ``"5"``).
+    """
+    if not isinstance(value, str) or (not value and not allow_empty):
+        raise SceneFormatError(f"{name}: expected a {'' if allow_empty else 'non-empty '}string, got {value!r}")
+    return value
+
+
+def parse_list(name: str, value) -> list:
+    """``value`` as a list if it is a JSON list (or a tuple, as :meth:`Scene.to_json` leaves them;
+    ``None`` or absent: empty); :class:`SceneFormatError` naming ``name`` otherwise."""
+    if value is None:
+        return []
+    if not isinstance(value, (list, tuple)):
+        raise SceneFormatError(f"{name}: expected a list, got {type(value).__name__} {value!r}")
+    return list(value)
+
+
+def parse_phrases(name: str, value) -> tuple[str, ...]:
+    """A list of strings (absent: empty), as a tuple."""
+    return tuple(parse_text(f"{name}[{k}]", x) for k, x in enumerate(parse_list(name, value)))
+
+
+def parse_material(name: str, value) -> str:
+    """One of :data:`~sim_envs.assets.furniture.MATERIALS`; the message names the known ones."""
+    if not isinstance(value, str) or value not in MATERIALS:
+        raise SceneFormatError(f"{name}: unknown material {value!r}; known materials: {list(MATERIALS)}")
+    return value
+
+
+def check_fields(where: str, d: dict, required: tuple[str, ...], allowed) -> None:
+    """Every ``required`` key is in ``d`` and every key of ``d`` is ``allowed``; a
+    :class:`SceneFormatError` naming the field (and the nearest allowed names) otherwise, so a
+    typo (``"yaww"``) is not silently read as the default."""
+    for k in required:
+        if k not in d:
+            raise SceneFormatError(f"{where}: missing field {k!r}")
+    for k in d:
+        if k not in allowed:
+            raise SceneFormatError(f"{where}: unknown field {k!r}{did_you_mean(k, allowed)} (fields: {', '.join(allowed)})")
+
+
+def _entries(d: dict, key: str, source: str, required: tuple[str, ...], allowed: tuple[str, ...]):
+    for i, e in enumerate(parse_list(f"{source}: {key}", d.get(key))):
         where = f"{source}: {key}[{i}]"
         if not isinstance(e, dict):
-            raise ValueError(f"{where}: expected an object, got {type(e).__name__}")
-        for k in required:
-            if k not in e:
-                raise ValueError(f"{where}: missing field {k!r}")
+            raise SceneFormatError(f"{where}: expected an object, got {type(e).__name__}")
+        check_fields(where, e, required, allowed)
         yield where, e
 
 
 def parse_rooms(d: dict, source: str) -> tuple[Room, ...]:
     """Validated rooms of a scene document (empty when it has none)."""
     rooms = []
-    for where, r in _entries(d, "rooms", source, ("id", "name", "floor")):
+    for where, r in _entries(d, "rooms", source, ("id", "name", "floor"), _FIELDS[Room]):
         fl = r["floor"]
         if not isinstance(fl, (list, tuple)) or len(fl) != 2:
-            raise ValueError(f"{where}.floor: expected [[x0, y0], [x1, y1]], got {fl!r}")
+            raise SceneFormatError(f"{where}.floor: expected [[x0, y0], [x1, y1]], got {fl!r}")
         lo, hi = parse_vector(f"{where}.floor[0]", fl[0], 2), parse_vector(f"{where}.floor[1]", fl[1], 2)
         if not (hi[0] > lo[0] and hi[1] > lo[1]):
-            raise ValueError(f"{where}.floor: expected lower corner below upper corner, got {fl!r}")
+            raise SceneFormatError(f"{where}.floor: expected lower corner below upper corner, got {fl!r}")
         rooms.append(
-            Room(str(r["id"]), str(r["name"]), (lo, hi), _material(f"{where}.floor_material", r.get("floor_material", "parquet")),
-                 _material(f"{where}.wall_material", r.get("wall_material", "plaster_white")))
+            Room(parse_text(f"{where}.id", r["id"]), parse_text(f"{where}.name", r["name"]), (lo, hi),
+                 parse_material(f"{where}.floor_material", r.get("floor_material", "parquet")),
+                 parse_material(f"{where}.wall_material", r.get("wall_material", "plaster_white")))
         )
     return tuple(rooms)
 
@@ -171,22 +230,26 @@ def parse_rooms(d: dict, source: str) -> tuple[Room, ...]:
 def parse_walls(d: dict, source: str) -> tuple[Wall, ...]:
     """Validated walls: positive thickness and height, doors within the wall and apart."""
     walls = []
-    for where, w in _entries(d, "walls", source, ("id", "start", "end")):
+    for where, w in _entries(d, "walls", source, ("id", "start", "end"), _FIELDS[Wall]):
+        wall_id = parse_text(f"{where}.id", w["id"])
         start, end = parse_vector(f"{where}.start", w["start"], 2), parse_vector(f"{where}.end", w["end"], 2)
-        thickness, height = float(w.get("thickness", 0.1)), float(w.get("height", 2.5))
-        if thickness <= 0 or height <= 0:
-            raise ValueError(f"{where}: expected positive thickness and height, got {thickness}, {height}")
+        thickness = parse_number(f"{where}.thickness", w.get("thickness", 0.1), positive=True)
+        height = parse_number(f"{where}.height", w.get("height", 2.5), positive=True)
         mats = w.get("materials", ["plaster_white", "plaster_white"])
         if not isinstance(mats, (list, tuple)) or len(mats) != 2:
-            raise ValueError(f"{where}.materials: expected [left, right], got {mats!r}")
-        doors = tuple(parse_vector(f"{where}.doors[{k}]", dr, 2) for k, dr in enumerate(w.get("doors") or []))
-        wall = Wall(str(w["id"]), start, end, thickness, height, tuple(_material(f"{where}.materials", m) for m in mats), doors)
+            raise SceneFormatError(f"{where}.materials: expected [left, right], got {mats!r}")
+        doors = tuple(parse_vector(f"{where}.doors[{k}]", dr, 2) for k, dr in enumerate(parse_list(f"{where}.doors", w.get("doors"))))
+        materials = tuple(parse_material(f"{where}.materials[{k}]", m) for k, m in enumerate(mats))
+        wall = Wall(wall_id, start, end, thickness, height, materials, doors)
         if wall.length <= 0:
-            raise ValueError(f"{where}: start and end coincide at {start}")
+            raise SceneFormatError(f"{where}: start and end coincide at {start}")
         at = 0.0
         for off, width in sorted(doors):
             if width <= 0 or off < at or off + width > wall.length + 1e-9:
-                raise ValueError(f"{where}: door [{off}, {width}] must have positive width, lie within the wall (length {wall.length:.3f}) and not overlap another door")
+                raise SceneFormatError(
+                    f"{where}: door [{off}, {width}] must have positive width, lie within the wall "
+                    f"(length {wall.length:.3f}) and not overlap another door"
+                )
             at = off + width
         walls.append(wall)
     return tuple(walls)
@@ -195,21 +258,24 @@ def parse_walls(d: dict, source: str) -> tuple[Wall, ...]:
 def parse_furniture(d: dict, source: str) -> tuple[Furniture, ...]:
     """Validated furniture: known kinds and materials, positive sizes, shelves inside the piece."""
     out = []
-    for where, f in _entries(d, "furniture", source, ("id", "name", "category", "position", "size")):
-        if f["category"] not in FURNITURE:
-            raise ValueError(f"{where} ({f['id']!r}): unknown furniture kind {f['category']!r}; known kinds: {sorted(FURNITURE)}")
+    for where, f in _entries(d, "furniture", source, ("id", "name", "category", "position", "size"), _FIELDS[Furniture]):
+        fid = parse_text(f"{where}.id", f["id"])
+        if not isinstance(f["category"], str) or f["category"] not in FURNITURE:
+            raise SceneFormatError(f"{where} ({fid!r}): unknown furniture kind {f['category']!r}; known kinds: {sorted(FURNITURE)}")
         size = parse_vector(f"{where}.size", f["size"], 3)
         if min(size) <= 0:
-            raise ValueError(f"{where}.size: expected positive sizes, got {size}")
-        shelves = tuple(float(s) for s in f.get("shelf_heights") or ())
+            raise SceneFormatError(f"{where}.size: expected positive sizes, got {size}")
+        shelf_list = parse_list(f"{where}.shelf_heights", f.get("shelf_heights"))
+        shelves = tuple(parse_number(f"{where}.shelf_heights[{k}]", s) for k, s in enumerate(shelf_list))
         if any(not 0 < s < size[2] for s in shelves) or list(shelves) != sorted(shelves):
-            raise ValueError(f"{where}.shelf_heights: expected ascending heights within (0, {size[2]}), got {list(shelves)}")
+            raise SceneFormatError(f"{where}.shelf_heights: expected ascending heights within (0, {size[2]}), got {list(shelves)}")
         kind = FURNITURE[f["category"]]
         out.append(
             Furniture(
-                str(f["id"]), str(f["name"]), str(f["category"]), parse_vector(f"{where}.position", f["position"], 3),
-                float(f.get("yaw", 0.0)), size, _material(f"{where}.material", f.get("material", kind.default_material)),
-                tuple(str(p) for p in f.get("phrases", ())), shelves,
+                fid, parse_text(f"{where}.name", f["name"]), f["category"], parse_vector(f"{where}.position", f["position"], 3),
+                parse_number(f"{where}.yaw", f.get("yaw", 0.0)), size,
+                parse_material(f"{where}.material", f.get("material", kind.default_material)),
+                parse_phrases(f"{where}.phrases", f.get("phrases")), shelves,
             )
         )
     return tuple(out)
@@ -245,7 +311,8 @@ def support_surface_z(obj, support, *, tol: float = 0.01) -> tuple[float | None,
 def check_supports(objects, furniture, source: str, *, tol: float = 0.01) -> None:
     """Every object's ``support`` exists and its base rests on a surface of it within ``tol``.
 
-    Raises ``ValueError`` naming the object and the support.
+    Raises :class:`~conceptfusion.errors.SceneFormatError` (a ``ValueError``) naming the object
+    and the support.
     """
     by_id = {f.id: f for f in furniture}
     objs = {o.id: o for o in objects}
@@ -254,18 +321,18 @@ def check_supports(objects, furniture, source: str, *, tol: float = 0.01) -> Non
         if s is None:
             continue
         if s == o.id:
-            raise ValueError(f"{source}: object {o.id!r} ({o.name}) cannot support itself")
+            raise SceneFormatError(f"{source}: object {o.id!r} ({o.name}) cannot support itself")
         if s != "floor" and s not in by_id and s not in objs:
-            raise ValueError(
+            raise SceneFormatError(
                 f"{source}: object {o.id!r} ({o.name}): support {s!r} is missing; expected 'floor', a furniture id "
                 f"({sorted(by_id)}) or an object id"
             )
         target = "floor" if s == "floor" else by_id.get(s) or objs[s]
         z, why = support_surface_z(o, target, tol=tol)
         if z is None:
-            raise ValueError(f"{source}: object {o.id!r} ({o.name}) floats: {why}")
+            raise SceneFormatError(f"{source}: object {o.id!r} ({o.name}) floats: {why}")
         if abs(o.position[2] - z) > tol:
-            raise ValueError(
+            raise SceneFormatError(
                 f"{source}: object {o.id!r} ({o.name}) floats: base at z={o.position[2]:.3f}, but the nearest surface of "
                 f"{s!r} is at z={z:.3f} (tolerance {tol} m)"
             )

@@ -96,7 +96,8 @@ def test_spatial_3d_map_answers_at_least_as_well_as_a_single_frame():
 
 
 def test_jobs_per_suite_and_bad_names():
-    cfg = RunConfig(suites=("query",), encoder="color", limit=2, agent_kwargs={"frames": 6, "integrate_every": 3})
+    # "search" runs map-navigator, which takes integrate_every: an option the map suites do not read
+    cfg = RunConfig(suites=("query", "search"), encoder="color", limit=2, agent_kwargs={"frames": 6, "integrate_every": 3})
     q = map_suite_jobs("query", cfg, "r")
     assert [j.scene_id for j in q] == ["tabletop-0111", "tabletop-0129"] and q[0].options == {"frames": 6}
     assert len(map_suite_jobs("ablation", cfg, "r")) == 2 * 4

@@ -231,7 +231,7 @@ def test_missing_ray_names_the_extra(monkeypatch):
 
 
 def test_an_unimportable_user_agent_fails_before_any_episode(tmp_path):
-    config = RunConfig(suites=("regression-rearrange",), agents=("no_such_module_here:Agent",), limit=1, backend="serial")
-    with pytest.raises(ValueError, match="cannot import 'no_such_module_here'"):
+    with pytest.raises(ValueError, match="cannot import 'no_such_module_here'"):  # checked when the config is made
+        config = RunConfig(suites=("regression-rearrange",), agents=("no_such_module_here:Agent",), limit=1, backend="serial")
         run_suites(config, tmp_path, progress=False)
     assert not (tmp_path / "results.jsonl").exists() or (tmp_path / "results.jsonl").stat().st_size == 0
