@@ -8,7 +8,8 @@ The file is JSON lines in the format of ``tests/agents/data/spatial_questions.js
 The parser is built with :func:`agents.spatial.parser.make_parser` (``"pattern"`` is the same
 ``PatternParser()`` that ``tests/agents/test_spatial_parser.py`` scores); ``--option KEY=VALUE``
 (repeatable; the value is read as JSON when it parses, else kept as a string) is passed on to
-the backend, e.g. ``--parser llm --option base_url=http://127.0.0.1:8080/v1``.
+the backend, e.g. ``--parser llm --option base_url=http://127.0.0.1:8080/v1``; ``--parser semantic``
+is the meaning-based parser (grammar fast path, MiniLM relation classes behind it).
 
 A row counts as correct when the parser refuses a ``null`` row, or returns the expected function
 with both arguments equal after :func:`agents.spatial.parser.clean_noun_phrase` on each side (case,
@@ -16,7 +17,7 @@ whitespace, leading articles/determiners, self-references), in order; this is th
 signature comparison of the test. Reported:
 
 * overall exact accuracy; exact accuracy on the spatial rows; refusal accuracy on the ``null``
-  rows; how many spatial rows were refused;
+  rows; how many spatial rows were refused; parse time per question (mean, median, max);
 * per expected function: exact accuracy and right-function accuracy (arguments ignored);
 * a confusion table, expected function (or ``refuse``) by returned function (or ``refuse``);
 * every miss, with its kind (wrong function, wrong arguments, swapped arguments, refused a
@@ -124,6 +125,8 @@ def score(parser, rows) -> dict:
         "confusion": {fn: dict(c) for fn, c in confusion.items()},
         "misses": misses,
         "ms_per_question": 1000.0 * sum(times) / max(n, 1),
+        "ms_median": 1000.0 * (sorted(times)[n // 2] if n % 2 else sum(sorted(times)[n // 2 - 1:n // 2 + 1]) / 2) if n else 0.0,
+        "ms_max": 1000.0 * max(times, default=0.0),
     }
 
 
@@ -144,7 +147,8 @@ def report(result: dict) -> str:
         f"spatial exact    {_pct(result['exact_spatial'], result['n_spatial'])}"
         f"   (refused: {result['spatial_refused']})",
         f"refusals         {_pct(result['exact_refuse'], result['n_refuse'])}",
-        f"time             {result['ms_per_question']:.2f} ms/question",
+        f"time             {result['ms_per_question']:.2f} ms/question mean, {result['ms_median']:.2f} median,"
+        f" {result['ms_max']:.1f} max (first call includes loading the backend)",
         "",
         f"{'function':<14}{'exact':>18}{'right function':>20}",
     ]

@@ -1,5 +1,7 @@
 """Spatial questions in words to 3D comparator calls: the offline pattern grammar, the
-OpenAI-compatible chat backend, the parser registry and the call signature they both produce.
+meaning-based parser (grammar fast path, noun-phrase chunks and MiniLM relation classes:
+``semantic.py``, ``lexicon.py``, exemplars in ``relations.json``), the OpenAI-compatible chat
+backend, the parser registry and the call signature they all produce.
 
 May import: :mod:`conceptfusion` (the comparators) and base modules.
 """

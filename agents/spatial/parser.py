@@ -5,6 +5,8 @@ The public face of the parsers:
 * :class:`SpatialQuestionParser` - the protocol: ``parse(question) -> ParseResult``.
 * :class:`PatternParser` - the default, offline phrase-pattern parser
   (:mod:`agents.spatial.grammar`).
+* :class:`SemanticParser` - the grammar as a fast path, then noun-phrase chunking and the
+  relation classified by meaning with the MiniLM text tower (:mod:`agents.spatial.semantic`).
 * :class:`LLMParser` - the paper's approach: its prompt sent to an OpenAI-compatible
   chat-completions server (:mod:`agents.spatial.llm`).
 * :data:`PARSERS` / :func:`make_parser` - the lookup table of backends by name.
@@ -19,6 +21,7 @@ from typing import Callable
 
 from agents.spatial.grammar import PatternParser, normalise_question, parse_question
 from agents.spatial.llm import PAPER_PROMPT, LLMParser, LLMParserConfig
+from agents.spatial.semantic import SemanticParser, SemanticParserConfig
 from agents.spatial.signature import (
     SELF_REFERENCE,
     ParseResult,
@@ -35,6 +38,8 @@ __all__ = [
     "ParseResult",
     "PatternParser",
     "LLMParser",
+    "SemanticParser",
+    "SemanticParserConfig",
     "LLMParserConfig",
     "PAPER_PROMPT",
     "SELF_REFERENCE",
@@ -59,15 +64,21 @@ def _make_pattern(**kwargs) -> PatternParser:
     return PatternParser()
 
 
+def _make_semantic(**kwargs) -> SemanticParser:
+    return SemanticParser(SemanticParserConfig(**kwargs))
+
+
 PARSERS: dict[str, Callable[..., SpatialQuestionParser]] = {
     "pattern": _make_pattern,
+    "semantic": _make_semantic,
     "llm": _make_llm,
 }
-"""Parser backends by name; ``"llm"`` takes the fields of :class:`LLMParserConfig`."""
+"""Parser backends by name; ``"semantic"`` takes the fields of :class:`SemanticParserConfig`,
+``"llm"`` those of :class:`LLMParserConfig`."""
 
 
 def make_parser(name: str = "pattern", **kwargs) -> SpatialQuestionParser:
-    """Build the parser backend ``name`` (``"pattern"`` or ``"llm"``) with its options.
+    """Build the parser backend ``name`` (``"pattern"``, ``"semantic"`` or ``"llm"``) with its options.
 
     Raises ``ValueError`` naming the nearest valid names for an unknown ``name``.
     """

