@@ -32,13 +32,13 @@ from agents.spatial.signature import (
     parsed,
 )
 
-__all__ = ["PatternParser", "parse_question", "normalise_question"]
+__all__ = ["PatternParser", "parse_question", "normalise_question", "CONTRACTIONS"]
 
 # ---------------------------------------------------------------------------------------------
 # Normalisation
 # ---------------------------------------------------------------------------------------------
 
-_CONTRACTIONS = (
+CONTRACTIONS = (
     (r"\bcan't\b", "can not"),
     (r"\bwon't\b", "will not"),
     (r"\b(\w+)n't\b", r"\1 not"),
@@ -75,7 +75,7 @@ def normalise_question(question: str) -> str:
     """Lower-cased, contraction-free, lead-in-free form of ``question`` (see the module doc)."""
     text = question.lower().replace("\u2019", "'").replace("\u2018", "'")
     text = text.replace('"', " ").replace("`", " ")
-    for pattern, repl in _CONTRACTIONS:
+    for pattern, repl in CONTRACTIONS:
         text = re.sub(pattern, repl, text)
     text = re.sub(r"[;:]", ",", text)
     text = re.sub(r"\s*,\s*", " , ", text)

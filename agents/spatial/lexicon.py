@@ -23,6 +23,8 @@ import functools
 import re
 from dataclasses import dataclass
 
+from agents.spatial.grammar import CONTRACTIONS
+
 __all__ = [
     "DETERMINERS",
     "AUXILIARIES",
@@ -134,16 +136,8 @@ REAL_WORD_SLIPS = {"form": "from", "fro": "for", "ot": "to", "fo": "of", "fra": 
 
 _ABBREVIATIONS = {"u": "you", "ur": "your", "pls": "please", "plz": "please", "thx": "thanks", "r": "are"}
 
-_CONTRACTIONS = (
-    (r"\bcan't\b", "can not"),
+_CONTRACTIONS = CONTRACTIONS + (
     (r"\bcannot\b", "can not"),
-    (r"\bwon't\b", "will not"),
-    (r"\b(\w+)n't\b", r"\1 not"),
-    (r"\b(what|where|how|who|which|that|it|there|here)'s\b", r"\1 is"),
-    (r"\bi'm\b", "i am"),
-    (r"\b(i|you|we|they)'d\b", r"\1 would"),
-    (r"\b(i|you|we|they)'re\b", r"\1 are"),
-    (r"\b(i|you|we|they)'ve\b", r"\1 have"),
     (r"\b(i|you|we|they)'ll\b", r"\1 will"),
 )
 _TOKEN = re.compile(r"[a-z0-9]+(?:'s)?|[,;:]|\s[-\u2013\u2014]+\s|[?!.]+")
