@@ -38,7 +38,8 @@ from tower_training.data import BACKGROUND_CLASS, SOURCES, CropData, ObjectClass
 
 __all__ = [
     "top1", "evaluate_crops", "FloorConfig", "map_query_scores", "choose_floor", "floor_rates",
-    "calibrate_score_floor", "write_score_floor", "orbit_scan", "main",
+    "calibrate_score_floor", "write_score_floor", "orbit_scan", "main", "scene_query_scores", "FloorConfigV2",
+    "calibrate_score_floor_v2",
 ]
 
 
@@ -218,13 +219,21 @@ def map_query_scores(
         (``unseen``, not scored). A score is ``-inf`` when the query is not found even without
         a floor.
     """
-    from conceptfusion.frames import RGBDFrame
-    from conceptfusion.map.fusion import PointFusionMap
-    from conceptfusion.map.query import NEGATIVE_PHRASES, locate
     from sim_envs.scenes.episodes import SCENES_ROOT
     from sim_envs.scenes.format import load_scene
 
     scene = load_scene(SCENES_ROOT / "tabletop" / f"{scene_id}.json")
+    return scene_query_scores(scene, featurizer, vocabulary, config)
+
+
+def scene_query_scores(scene, featurizer, vocabulary: Sequence[str], config: FloorConfig = FloorConfig(),
+                       *, name_of: Callable = lambda o: o.name) -> dict:
+    """:func:`map_query_scores` for a :class:`~sim_envs.scenes.format.Scene` object; ``name_of``
+    gives the query name of a scene object (default its ``name``; v2 uses its category)."""
+    from conceptfusion.frames import RGBDFrame
+    from conceptfusion.map.fusion import PointFusionMap
+    from conceptfusion.map.query import NEGATIVE_PHRASES, locate
+
     obs, seen = orbit_scan(scene, config.frames, config.width, config.height)
     featurizer.reset(None)
     fmap = PointFusionMap(featurizer.dim, max_depth=_MAP_MAX_DEPTH)
@@ -238,12 +247,12 @@ def map_query_scores(
 
     pixels: dict[str, int] = {}
     for obj, n in zip(scene.objects, seen):
-        pixels[obj.name] = pixels.get(obj.name, 0) + int(n)
+        pixels[name_of(obj)] = pixels.get(name_of(obj), 0) + int(n)
     present = sorted(n for n, px in pixels.items() if px >= config.min_pixels)
     unseen = sorted(n for n, px in pixels.items() if px < config.min_pixels)
     absent = sorted(set(vocabulary) - set(pixels))
     return {
-        "scene": scene_id,
+        "scene": scene.id,
         "present": {n: score(n) for n in present},
         "absent": {n: score(n) for n in absent},
         "unseen": unseen,
@@ -339,6 +348,73 @@ def calibrate_score_floor(config: FloorConfig = FloorConfig(), *, encoder=None, 
     return out
 
 
+@dataclass(frozen=True)
+class FloorConfigV2:
+    """The v2 score-floor calibration: library arrangements of the ``calibration`` seed role."""
+
+    scenes: int = 12
+    """Arrangements :func:`tower_training.library_views.arrange_table` of the first ``scenes``
+    calibration seeds (TRAIN and VAL instances): the first half chooses the floor, the second
+    half only measures it."""
+    scan: FloorConfig = FloorConfig(calibration_scenes=(), validation_scenes=())
+    """Scan settings (frames, size, minimum pixels) as v1."""
+
+
+def calibrate_score_floor_v2(config: FloorConfigV2 = FloorConfigV2(), *, encoder=None, log=print) -> dict:
+    """:func:`calibrate_score_floor` on the v2 world: the same method (orbit scans, a map per scene,
+    the floor that maximises balanced accuracy), on library arrangements of ``calibration`` seeds
+    only. Present names: categories of objects the scan saw; absent: every other library category
+    name. ``absent_rejected_same_parent``: absent names sharing a nearest parent group with a
+    present object ("cup" beside a mug), the hard near misses.
+    """
+    from conceptfusion.perception.featurizer import PerceivedFeaturizer, make_featurizer
+    from conceptfusion.perception.masks.registry import make_proposer
+    from sim_envs.assets.library import catalogue
+    from sim_envs.scenes.splits import splits
+    from tower_training.library_views import arrange_table, pool_for_seed_role
+
+    featurizer = make_featurizer("embedded") if encoder is None else PerceivedFeaturizer(encoder, make_proposer("rgbd"))
+    split, cat = splits(), catalogue()
+    vocab = sorted(cat.categories)
+    pool = pool_for_seed_role(split, "calibration")
+    seeds = split.seeds_of("calibration", config.scenes)
+    half = len(seeds) // 2
+    per_split: dict[str, list[dict]] = {"calibration": [], "validation": []}
+    for k, seed in enumerate(seeds):
+        t0 = time.perf_counter()
+        scene = arrange_table(seed, pool)
+        r = scene_query_scores(scene, featurizer, vocab, config.scan, name_of=lambda o: o.category)
+        part = "calibration" if k < half else "validation"
+        per_split[part].append(r)
+        log(f"{part} {scene.id}: {len(r['present'])} present, {len(r['absent'])} absent names "
+            f"({time.perf_counter() - t0:.1f} s)")
+
+    def pooled(rs):
+        return ([s for r in rs for s in r["present"].values()], [s for r in rs for s in r["absent"].values()])
+
+    floor = round(choose_floor(*pooled(per_split["calibration"])), 3)
+    out: dict = {"score_floor": floor, "world": "v2", "seeds": seeds,
+                 "config": {"scenes": config.scenes, "frames": config.scan.frames, "width": config.scan.width,
+                            "height": config.scan.height, "min_pixels": config.scan.min_pixels}}
+    parent = {c: cat.categories[c].parents[0] if cat.categories[c].parents else "" for c in vocab}
+    for part, rs in per_split.items():
+        p, a = pooled(rs)
+        found, rejected = floor_rates(p, a, floor)
+        fp = [f"{r['scene']}: {n} ({s:.2f})" for r in rs for n, s in r["absent"].items() if s >= floor]
+        fn = [f"{r['scene']}: {n} ({s:.2f})" if math.isfinite(s) else f"{r['scene']}: {n} (not found)"
+              for r in rs for n, s in r["present"].items() if s < floor]
+        hard = [s for r in rs for n, s in r["absent"].items() if parent[n] in {parent[q] for q in r["present"]}]
+        out[part] = {
+            "present_found": round(found, 4), "absent_rejected": round(rejected, 4),
+            "absent_rejected_same_parent": round(floor_rates([], hard, floor)[1], 4), "n_absent_same_parent": len(hard),
+            "balanced_accuracy": round(0.5 * (found + rejected), 4),
+            "absent_found_without_floor": round(float(np.mean(np.isfinite(a))), 4),
+            "n_present": len(p), "n_absent": len(a), "scenes": [r["scene"] for r in rs],
+            "missed_present": fn, "found_absent_count": len(fp), "found_absent": fp[:40],
+        }
+    return out
+
+
 def write_score_floor(result: dict, tower_dir: str | Path | None = None) -> Path:
     """Write a calibration (:func:`calibrate_score_floor`) into ``tower.json`` atomically:
     ``metrics.score_floor`` (what :func:`agents.builtin.make_mapper` reads) and
@@ -362,6 +438,8 @@ def _parser() -> argparse.ArgumentParser:
                    help="measure map-query scores on shipped tabletop scenes, choose the score floor and write it into tower.json")
     p.add_argument("--tower-dir", default=None, help="tower folder (default: the shipped tower)")
     p.add_argument("--dry-run", action="store_true", help="print the calibration, write nothing")
+    p.add_argument("--world", choices=("v1", "v2"), default="v1",
+                   help="v1: shipped tabletop scenes (default); v2: library arrangements of the calibration seeds")
     return p
 
 
@@ -376,13 +454,14 @@ def main(argv: list[str] | None = None) -> int:
 
         encoder = make_encoder(f"embedded:{args.tower_dir}")
     t0 = time.perf_counter()
-    result = calibrate_score_floor(encoder=encoder)
+    result = calibrate_score_floor_v2(encoder=encoder) if args.world == "v2" else calibrate_score_floor(encoder=encoder)
+    near = "parent" if args.world == "v2" else "colour"
     for split in ("calibration", "validation"):
         r = result[split]
         print(f"{split}: floor {result['score_floor']:.3f}: present found {r['present_found']:.3f} (n={r['n_present']}), "
               f"absent rejected {r['absent_rejected']:.3f} (n={r['n_absent']}; found without a floor "
-              f"{r['absent_found_without_floor']:.3f}; same colour as a present object rejected "
-              f"{r['absent_rejected_same_colour']:.3f}, n={r['n_absent_same_colour']}), "
+              f"{r['absent_found_without_floor']:.3f}; same {near} as a present object rejected "
+              f"{r[f'absent_rejected_same_{near}']:.3f}, n={r[f'n_absent_same_{near}']}), "
               f"balanced accuracy {r['balanced_accuracy']:.3f}")
         for m in r["missed_present"]:
             print(f"  missed present: {m}")

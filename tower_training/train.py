@@ -34,6 +34,7 @@ from pathlib import Path
 import numpy as np
 
 from tower_training.data import BACKGROUND_CLASS, SCENE_CLASS, SOURCES, CropConfig, CropData, ObjectClass, instance_classes
+from tower_training.train_v2 import main as main_v2
 
 __all__ = ["DataConfig", "HELD_OUT_INSTANCES", "HELD_OUT_CATEGORY", "vocabulary", "render_crop_data", "main"]
 
@@ -117,18 +118,16 @@ def render_crop_data(config: DataConfig, cache_dir: Path | None = None) -> CropD
 
 
 def _embed_fn(model, input_size: int):
-    import torch
+    from tower_training.training import torch_embed_fn
 
-    from conceptfusion.perception.image_tower import preprocess
+    return torch_embed_fn(model, input_size)
 
-    def embed(images) -> np.ndarray:
-        out = []
-        with torch.no_grad():
-            for s in range(0, len(images), 256):
-                out.append(model(torch.from_numpy(preprocess(images[s : s + 256], input_size))).numpy())
-        return np.concatenate(out) if out else np.zeros((0, model.head.out_features), np.float32)
 
-    return embed
+def _world_parser() -> argparse.ArgumentParser:
+    p = argparse.ArgumentParser(add_help=False)
+    p.add_argument("--world", choices=("v1", "v2"), default="v1",
+                   help="v1: the 7-kind x 10-colour world (default); v2: the object library (tower_training.train_v2)")
+    return p
 
 
 def _parser() -> argparse.ArgumentParser:
@@ -136,7 +135,8 @@ def _parser() -> argparse.ArgumentParser:
     from tower_training.training import TrainConfig
 
     t = TrainConfig()
-    p = argparse.ArgumentParser(prog="python -m tower_training.train", description=__doc__.splitlines()[0])
+    p = argparse.ArgumentParser(prog="python -m tower_training.train", description=__doc__.splitlines()[0],
+                                parents=[_world_parser()])
     p.add_argument("--out", required=True, help="folder for tower.onnx and tower.json")
     p.add_argument("--cache-dir", default=os.path.join(os.environ.get("XDG_CACHE_HOME", os.path.expanduser("~/.cache")), "conceptfusion"),
                    help="where rendered crops are cached (default: $XDG_CACHE_HOME/conceptfusion)")
@@ -154,7 +154,11 @@ def _parser() -> argparse.ArgumentParser:
 
 
 def main(argv: list[str] | None = None) -> int:
-    args = _parser().parse_args(argv)
+    argv_list = list(sys.argv[1:] if argv is None else argv)
+    world, _ = _world_parser().parse_known_args(argv_list)
+    if world.world == "v2":
+        return main_v2(argv_list)
+    args = _parser().parse_args(argv_list)
     logging.basicConfig(level=logging.INFO, format="%(asctime)s %(name)s: %(message)s")
     import torch
 

@@ -22,7 +22,11 @@ import numpy as np
 
 from conceptfusion.perception.image_tower import TowerConfig, build_tower, preprocess
 
-__all__ = ["CropSet", "TrainConfig", "class_targets", "train_tower", "retrieval_accuracy", "augment"]
+__all__ = [
+    "CropSet", "TrainConfig", "class_targets", "train_tower", "retrieval_accuracy", "augment", "multicaption_loss",
+    "train_tower_multicaption", "torch_embed_fn",
+    "load_tower_weights_from_onnx",
+]
 
 logger = logging.getLogger(__name__)
 
@@ -175,3 +179,198 @@ def retrieval_accuracy(embed_fn, crops: CropSet, targets_cd: np.ndarray, *, cand
     cand = np.arange(len(targets_cd)) if candidates is None else np.asarray(candidates)
     pred = cand[np.argmax(emb @ targets_cd[cand].T, axis=1)]
     return float(np.mean(pred == np.asarray(crops.labels)))
+
+
+def multicaption_loss(logits_bt, positives_bt, weights_t=None):
+    """Contrastive loss of crops against a bank of captions with several positives per crop.
+
+    For each crop and each of its positive captions p: ``-log softmax`` of p among p and the
+    crop's *negatives* (the other positives are masked out, so "mug" and "cup" of the same crop
+    do not compete), averaged over the crop's positives with ``weights_t`` (default: uniform),
+    then over crops.
+
+    Shape:
+        logits (B, T) torch float, positives (B, T) torch bool (at least one per row),
+        weights (T,) -> scalar.
+    """
+    import torch
+
+    neg_inf = torch.finfo(logits_bt.dtype).min
+    neg = logits_bt.masked_fill(positives_bt, neg_inf)  # (B, T): negatives only
+    neg_lse = torch.logsumexp(neg, dim=1, keepdim=True)  # (B, 1)
+    # log softmax of each positive among itself and the negatives
+    per = logits_bt - torch.logaddexp(logits_bt, neg_lse.expand_as(logits_bt))  # (B, T)
+    w = positives_bt.to(logits_bt.dtype)
+    if weights_t is not None:
+        w = w * weights_t[None, :]
+    return -((per * w).sum(dim=1) / w.sum(dim=1).clamp(min=1e-12)).mean()
+
+
+def train_tower_multicaption(
+    train: CropSet,
+    captions_td: np.ndarray,
+    positives_ct: np.ndarray,
+    config: TrainConfig = TrainConfig(),
+    *,
+    caption_weights_t: np.ndarray | None = None,
+    select_fn=None,
+    select_every: int = 200,
+    log_every: int = 100,
+    init_onnx: str | None = None,
+):
+    """Train a tower so each crop matches every caption of its class (multi-positive loss).
+
+    Args:
+        train: crops labelled with class indices (rows of ``positives_ct``).
+        captions_td: text embeddings of the caption bank, unit rows.
+        positives_ct: class c has caption t.
+        caption_weights_t: weight of each caption as a positive (default uniform).
+        select_fn: ``select_fn(embed_fn) -> float`` (higher is better), evaluated every
+            ``select_every`` steps and at the end on the VALIDATION set; the weights with the
+            best value are returned. ``None``: the last weights.
+        init_onnx: start from an exported tower's weights (:func:`load_tower_weights_from_onnx`)
+            instead of a random initialisation; its batch norms then stay frozen (eval mode).
+
+    Returns:
+        ``(model in eval mode, history)``; history lists ``{"step", "val"}`` of every selection
+        evaluation and ``"best_step"``.
+
+    Shape:
+        captions (T, d), positives (C, T) bool, weights (T,).
+    """
+    import copy
+
+    import torch
+
+    if captions_td.shape[1] != config.tower.embed_dim:
+        raise ValueError(f"captions_td: expected dimension {config.tower.embed_dim}, got {captions_td.shape[1]}")
+    if positives_ct.shape[1] != len(captions_td) or not positives_ct.any(axis=1).all():
+        raise ValueError("positives_ct: expected (C, T) with at least one caption per class")
+    if len(train.labels) == 0:
+        raise ValueError("train: expected at least one crop")
+    torch.manual_seed(config.seed)
+    rng = np.random.default_rng(config.seed)
+    model = build_tower(config.tower)
+    if init_onnx is not None:
+        load_tower_weights_from_onnx(model, init_onnx)
+    logit_scale = torch.nn.Parameter(torch.tensor(math.log(10.0)))
+    opt = torch.optim.AdamW([{"params": list(model.parameters())}, {"params": [logit_scale], "weight_decay": 0.0}],
+                            lr=config.lr, weight_decay=config.weight_decay)
+    warm = max(1, config.steps // 20)
+
+    def lr_at(step: int) -> float:
+        if step < warm:
+            return config.lr * (step + 1) / warm
+        t = (step - warm) / max(1, config.steps - warm)
+        return config.lr * 0.5 * (1 + math.cos(math.pi * t))
+
+    def set_train() -> None:
+        model.train()
+        if init_onnx is not None:  # folded batch norms stay the identity
+            for m in model.modules():
+                if isinstance(m, torch.nn.BatchNorm2d):
+                    m.eval()
+
+    caps = torch.from_numpy(np.ascontiguousarray(captions_td, np.float32))
+    pos = torch.from_numpy(np.asarray(positives_ct, bool))
+    wts = None if caption_weights_t is None else torch.from_numpy(np.asarray(caption_weights_t, np.float32))
+    labels = np.asarray(train.labels, np.int64)
+    history: dict = {"evals": [], "best_step": None}
+    best_val, best_state = -math.inf, None
+
+    def embed(images):
+        out = []
+        model.eval()
+        with torch.no_grad():
+            for s in range(0, len(images), 256):
+                out.append(model(torch.from_numpy(preprocess(images[s : s + 256], config.tower.input_size))).numpy())
+        set_train()
+        return np.concatenate(out) if out else np.zeros((0, config.tower.embed_dim), np.float32)
+
+    set_train()
+    for step in range(config.steps):
+        idx = rng.integers(0, len(labels), config.batch_size)
+        x = torch.from_numpy(preprocess([augment(train.images[i], rng) for i in idx], config.tower.input_size))
+        y = torch.from_numpy(labels[idx])
+        for g in opt.param_groups:
+            g["lr"] = lr_at(step)
+        emb = model(x)
+        logits = logit_scale.exp().clamp(max=100.0) * emb @ caps.T
+        loss = multicaption_loss(logits, pos[y], wts)
+        opt.zero_grad(set_to_none=True)
+        loss.backward()
+        opt.step()
+        if log_every and (step % log_every == 0 or step == config.steps - 1):
+            hit = pos[y, logits.argmax(1)].float().mean()
+            logger.info("step %d/%d loss %.3f batch top-1 caption is a positive %.2f scale %.1f",
+                        step, config.steps, loss.item(), float(hit), logit_scale.exp().item())
+        last = step == config.steps - 1
+        if select_fn is not None and ((step + 1) % select_every == 0 or last):
+            v = float(select_fn(embed))
+            history["evals"].append({"step": step + 1, "val": v})
+            logger.info("step %d: validation %.4f", step + 1, v)
+            if v > best_val:
+                best_val, history["best_step"] = v, step + 1
+                best_state = copy.deepcopy(model.state_dict())
+    if best_state is not None:
+        model.load_state_dict(best_state)
+    history["best_val"] = None if best_state is None else best_val
+    history["logit_scale"] = float(logit_scale.exp().item())
+    return model.eval(), history
+
+
+def torch_embed_fn(model, input_size: int):
+    """``embed(images) -> (n, d)`` float32 with a torch tower (no gradients, batches of 256).
+
+    Shape:
+        n crops (h_i, w_i, 3) uint8 -> (n, d).
+    """
+    import torch
+
+    def embed(images) -> np.ndarray:
+        out = []
+        with torch.no_grad():
+            for s in range(0, len(images), 256):
+                out.append(model(torch.from_numpy(preprocess(images[s : s + 256], input_size))).numpy())
+        return np.concatenate(out) if out else np.zeros((0, model.head.out_features), np.float32)
+
+    return embed
+
+
+def load_tower_weights_from_onnx(model, onnx_path) -> None:
+    """Put an exported tower's weights (``tower.onnx``) into a torch tower of the same config.
+
+    The exporter folds every batch norm into the convolution before it, so each convolution
+    takes the folded weight and bias and its batch norm becomes the identity (weight 1, bias
+    the folded bias, running mean 0, running variance ``1 - eps``). The module then computes
+    what the ONNX graph computes, with batch norms in eval mode; train it with
+    ``freeze_batchnorm=True`` (:func:`train_tower_multicaption`) to keep it so.
+    """
+    import onnx
+    import torch
+    from onnx import numpy_helper
+
+    g = onnx.load(str(onnx_path)).graph
+    inits = {i.name: numpy_helper.to_array(i) for i in g.initializer}
+    order = {name: k for k, name in enumerate(inits)}  # the exporter lists folded weights in module order
+    convs = sorted((n for n in g.node if n.op_type == "Conv"), key=lambda n: order[n.input[1]])
+    mods = list(model.modules())
+    pairs = []  # (conv, the batch norm after it)
+    for i, m in enumerate(mods):
+        if isinstance(m, torch.nn.Conv2d):
+            bn = next(x for x in mods[i + 1:] if isinstance(x, torch.nn.BatchNorm2d))
+            pairs.append((m, bn))
+    if len(pairs) != len(convs):
+        raise ValueError(f"{onnx_path}: {len(convs)} convolutions, but the tower has {len(pairs)}")
+    with torch.no_grad():
+        for (conv, bn), node in zip(pairs, convs):
+            w, b = inits[node.input[1]], inits[node.input[2]]
+            if tuple(w.shape) != tuple(conv.weight.shape):
+                raise ValueError(f"{onnx_path}: convolution {node.name} has shape {w.shape}, the tower {tuple(conv.weight.shape)}")
+            conv.weight.copy_(torch.from_numpy(np.array(w)))
+            bn.weight.fill_(1.0)
+            bn.bias.copy_(torch.from_numpy(np.array(b)))
+            bn.running_mean.zero_()
+            bn.running_var.fill_(1.0 - bn.eps)
+        model.head.weight.copy_(torch.from_numpy(np.array(inits["head.weight"])))
+        model.head.bias.copy_(torch.from_numpy(np.array(inits["head.bias"])))

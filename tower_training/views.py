@@ -24,7 +24,7 @@ from sim_envs.mujoco.scan import iter_views
 from sim_envs.mujoco.scene import build_mujoco
 from sim_envs.scenes.gen_tabletop import generate_tabletop
 
-__all__ = ["ViewConfig", "TabletopView", "random_tabletop_views"]
+__all__ = ["ViewConfig", "TabletopView", "random_poses", "random_tabletop_views"]
 
 
 @dataclass(frozen=True)
@@ -68,7 +68,7 @@ class TabletopView:
     """Name of each object ("red mug"), by segmentation index."""
 
 
-def _random_poses(scene, ms, views_per_scene: int, rng: np.random.Generator, config: ViewConfig) -> Iterator[tuple]:
+def random_poses(scene, ms, views_per_scene: int, rng: np.random.Generator, config: ViewConfig) -> Iterator[tuple]:
     """Random (eye, target) pairs around the table; before yielding each, set the lights' random
     brightness for that view (the randomness is drawn view by view, when the view is rendered)."""
     base_light = ms.model.light_diffuse.copy()
@@ -101,7 +101,7 @@ def random_tabletop_views(
         scene = generate_tabletop(int(seed))
         ms = build_mujoco(scene)
         names = tuple(o.name for o in scene.objects)
-        poses = _random_poses(scene, ms, views_per_scene, rng, config)
+        poses = random_poses(scene, ms, views_per_scene, rng, config)
         with closing(iter_views(ms, poses, config.width, config.height, fovy_deg=config.fovy_deg)) as frames:
             for f in frames:
                 yield TabletopView(frame=f, scene_seed=int(seed), object_names=names)

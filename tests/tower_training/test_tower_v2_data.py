@@ -1,0 +1,137 @@
+"""Tower v2 data: captions of library instances, table arrangements by split role, a few rendered
+views whose crops hold no held-out (test) instance or category, and the multi-caption loss."""
+
+import math
+
+import numpy as np
+import pytest
+
+from sim_envs.assets.library import catalogue, get_instance
+from sim_envs.scenes.splits import splits
+from tower_training.captions import article, caption_bank, instance_captions
+from tower_training.data import BACKGROUND_CLASS, SCENE_CLASS, SOURCES
+from tower_training.library_views import TABLE, arrange_table, pool_for_seed_role
+from tower_training.world_v2 import DataConfigV2, render_crop_data_v2, train_caption_bank
+
+
+def test_captions_of_an_instance_cover_every_kind():
+    inst = get_instance("mug-000")
+    caps = instance_captions(inst, catalogue())
+    by_kind = {}
+    for c in caps:
+        by_kind.setdefault(c.kind, []).append(c.text)
+    assert by_kind["name"] == ["mug", "a mug"]
+    assert by_kind["synonym"] == ["coffee mug", "cup", "tea mug"]
+    assert by_kind["parent"] == ["drinkware", "container"]  # the root "object" says nothing
+    assert by_kind["colour"] == [f"a {inst.color} mug"]
+    assert by_kind["material"] == [article(f"{inst.material} mug")]
+    assert by_kind["function"] == ["something to drink from", "a cup for hot coffee or tea"]
+    assert len({c.text for c in caps}) == len(caps)
+    assert article("apple") == "an apple" and article("mug") == "a mug"
+
+
+def test_caption_bank_shares_texts_and_marks_positives():
+    bank = caption_bank([("a", instance_captions(get_instance("mug-000"), catalogue())),
+                         ("b", instance_captions(get_instance("mug-001"), catalogue()))])
+    assert bank.texts.count("mug") == 1
+    t = bank.texts.index("mug")
+    assert bank.positives[:, t].tolist() == [True, True]
+    assert "mug" in bank.of("b")
+
+
+def test_training_bank_holds_only_train_instances_and_no_held_out_category_name():
+    split = splits()
+    bank = train_caption_bank(split)
+    assert set(bank.class_names[:-2]) == set(split.instances_of("train"))
+    assert bank.class_names[-2:] == (BACKGROUND_CLASS.name, SCENE_CLASS.name)
+    held = set(split.categories_of("val")) | set(split.categories_of("test"))
+    for name in held:
+        assert name not in bank.texts and article(name) not in bank.texts
+
+
+def test_pools_follow_the_split_roles():
+    split = splits()
+    train, val = pool_for_seed_role(split, "tower_train"), pool_for_seed_role(split, "tower_val")
+    assert {split.instances[i] for i in train} == {"train"}
+    assert {split.instances[i] for i in val} == {"val"}
+    test_cats = set(split.categories_of("test"))
+    assert not test_cats & {get_instance(i).category for i in train + val}
+    assert set(split.categories_of("val")) <= {get_instance(i).category for i in val}
+    cal = pool_for_seed_role(split, "calibration")
+    assert "test" not in {split.instances[i] for i in cal}
+    with pytest.raises(ValueError, match="seed_role"):
+        pool_for_seed_role(split, "training")
+
+
+def test_arrangements_are_seeded_on_the_table_and_from_the_pool():
+    pool = pool_for_seed_role(splits(), "tower_train")
+    a, b = arrange_table(100_003, pool), arrange_table(100_003, pool)
+    assert a.to_json() == b.to_json()
+    assert 1 <= len(a.objects) <= 8
+    counts = [len(arrange_table(s, pool).objects) for s in range(100_000, 100_010)]
+    assert min(counts) >= 3 and max(counts) <= 8
+    for o in a.objects:
+        assert o.asset.split(":", 1)[1] in pool
+        assert abs(o.position[2] - TABLE.top_z) < 1e-9
+        assert abs(o.position[0]) <= TABLE.size[0] / 2 and abs(o.position[1]) <= TABLE.size[1] / 2
+    with pytest.raises(ValueError, match="n_objects"):
+        arrange_table(1, pool, n_objects=(0, 2))
+
+
+def test_a_few_views_give_crops_of_train_or_val_instances_only():
+    split = splits()
+    cfg = DataConfigV2(train_scenes=2, val_scenes=1, test_scenes=0, views_per_scene=1, width=160, height=120)
+    data = render_crop_data_v2(cfg)
+    cat = catalogue()
+    names = np.array(data.class_names)[data.labels]
+    obj = np.isin(data.sources, [SOURCES.index("gt"), SOURCES.index("proposer")])
+    assert obj.any() and (names[data.sources == SOURCES.index("frame")] == SCENE_CLASS.name).sum() == 3
+    train = np.isin(data.seeds, cfg.seeds("train", split))
+    val = np.isin(data.seeds, cfg.seeds("val", split))
+    assert (train | val).all() and train.any() and val.any()
+    assert {split.instances[n] for n in names[obj & train]} == {"train"}
+    assert {split.instances[n] for n in names[obj & val]} == {"val"}
+    test_cats = set(split.categories_of("test"))
+    assert not {cat.instances[n].category for n in names[obj]} & test_cats
+
+
+def test_multicaption_loss_masks_other_positives_from_the_negatives():
+    torch = pytest.importorskip("torch")
+    from tower_training.training import multicaption_loss
+
+    logits = torch.tensor([[2.0, 0.0, 1.0]])
+    pos = torch.tensor([[True, False, True]])
+    # caption 0 against {0, 1}; caption 2 against {2, 1}: caption 0 and 2 never compete
+    want = -0.5 * ((2 - math.log(math.exp(2) + 1)) + (1 - math.log(math.exp(1) + 1)))
+    assert float(multicaption_loss(logits, pos)) == pytest.approx(want, rel=1e-6)
+    w = torch.tensor([3.0, 1.0, 1.0])
+    want_w = -((3 * (2 - math.log(math.exp(2) + 1))) + (1 - math.log(math.exp(1) + 1))) / 4
+    assert float(multicaption_loss(logits, pos, w)) == pytest.approx(want_w, rel=1e-6)
+
+
+def test_onnx_weights_load_into_a_torch_tower_exactly():
+    torch = pytest.importorskip("torch")
+    pytest.importorskip("onnx")
+    import onnxruntime as ort
+
+    from conceptfusion.perception.image_tower import SHIPPED_TOWER_DIR, TowerConfig, build_tower, preprocess
+    from tower_training.training import load_tower_weights_from_onnx
+
+    model = build_tower(TowerConfig(stem_stride=2))
+    load_tower_weights_from_onnx(model, SHIPPED_TOWER_DIR / "tower.onnx")
+    x = preprocess([np.random.default_rng(0).integers(0, 255, (30, 40, 3), dtype=np.uint8)], 64)
+    want = ort.InferenceSession(str(SHIPPED_TOWER_DIR / "tower.onnx")).run(None, {"images": x})[0]
+    with torch.no_grad():
+        got = model.eval()(torch.from_numpy(x)).numpy()
+    assert np.abs(got - want).max() < 1e-5
+
+
+def test_topk_counts_a_correct_text_among_the_k_best():
+    from tower_training.evaluate_v2 import topk
+
+    emb = np.array([[1.0, 0.0], [0.0, 1.0]])
+    texts = np.array([[1.0, 0.0], [0.6, 0.8], [0.0, 1.0]])
+    ok = np.array([[False, True, False], [False, True, False]])
+    assert topk(emb, texts, ok, 1) == 0.0  # each row's best text is the wrong one
+    assert topk(emb, texts, ok, 2) == 1.0
+    assert math.isnan(topk(np.zeros((0, 2)), texts, np.zeros((0, 3), bool)))
