@@ -1,4 +1,5 @@
-"""Atomic file writes: a reader never sees a half-written file."""
+"""Atomic file writes (a reader never sees a half-written file), and reading text files with
+clear errors."""
 
 from __future__ import annotations
 
@@ -6,7 +7,9 @@ import os
 import tempfile
 from pathlib import Path
 
-__all__ = ["atomic_write_bytes", "atomic_write_text"]
+from conceptfusion.errors import MissingFileError
+
+__all__ = ["atomic_write_bytes", "atomic_write_text", "read_text_file"]
 
 
 def atomic_write_bytes(path: str | os.PathLike, data: bytes) -> Path:
@@ -42,3 +45,25 @@ def _umask() -> int:
 def atomic_write_text(path: str | os.PathLike, text: str) -> Path:
     """Write UTF-8 ``text`` to ``path`` atomically (see :func:`atomic_write_bytes`)."""
     return atomic_write_bytes(path, text.encode("utf-8"))
+
+
+def read_text_file(path: str | os.PathLike, what: str, error: type[Exception]) -> str:
+    """The UTF-8 text of the file at ``path``, which should hold ``what`` (``"scene file"``).
+
+    Raises :class:`~conceptfusion.errors.MissingFileError` when there is no such file, and
+    ``error`` naming the file for a folder, a special file, or bytes that are not UTF-8 (with the
+    line and byte offset of the first bad byte).
+    """
+    p = Path(path)
+    article = "an" if what[:1].lower() in "aeiou" else "a"
+    if not p.is_file():
+        if p.exists():
+            raise error(f"{p}: expected {article} {what}, got a {'folder' if p.is_dir() else 'special file'}")
+        raise MissingFileError(f"{what} not found: {p}")
+    data = p.read_bytes()
+    try:
+        return data.decode("utf-8")
+    except UnicodeDecodeError as exc:
+        line = data[: exc.start].count(b"\n") + 1
+        raise error(f"{p}:line {line}: not {article} {what}: not UTF-8 text "
+                    f"(byte 0x{data[exc.start]:02x} at offset {exc.start})") from None

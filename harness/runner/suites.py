@@ -4,7 +4,12 @@ Episode suites roll agents through environment episodes (:mod:`harness.runner.ta
 
 * ``rearrange``: the shipped tabletop episodes (``scenes/tabletop/episodes-v1.jsonl``), the
   paper's "push X to the left/right of the line";
-* ``search``: the shipped household object-search episodes (``scenes/household/episodes-v1.jsonl``).
+* ``rearrange-v2``: rearrangement on the v2 tabletops filled from the object library
+  (``scenes/tabletop-v2/episodes-v2.jsonl``, evaluation seeds; goals named by name, synonym,
+  attribute or function; not a default suite);
+* ``search``: the shipped household object-search episodes (``scenes/household/episodes-v1.jsonl``);
+* ``search-v2``: object search in the v2 apartments filled from the object library
+  (``scenes/household-v2/episodes-v2.jsonl``; not a default suite).
 
 Map suites score ConceptFusion maps against simulator ground truth (:mod:`harness.maps.suites`):
 
@@ -62,8 +67,22 @@ SUITES: dict[str, Suite] = {
             env_kwargs={"width": 160, "height": 120, "scan_frames": 8},
         ),
         Suite(
+            "rearrange-v2", "episodes",
+            "tabletop rearrangement on library tabletops (evaluation seeds): goals named by name, synonym, attribute or function",
+            task="tabletop_rearrange", episodes_file=SCENES_ROOT / "tabletop-v2" / "episodes-v2.jsonl",
+            agents=("map-pusher", "frame-pusher", "random-pusher"),
+            env_kwargs={"width": 160, "height": 120, "scan_frames": 8},
+        ),
+        Suite(
             "search", "episodes", "object search in apartments: stop within 1 m of the described object",
             task="object_search", episodes_file=SCENES_ROOT / "household" / "episodes-v1.jsonl",
+            agents=("map-navigator", "frame-searcher", "random-walker"),
+            env_kwargs={"width": 160, "height": 120},
+        ),
+        Suite(
+            "search-v2", "episodes",
+            "object search in library-filled apartments (evaluation seeds): goals named by name, synonym, attribute or function",
+            task="object_search", episodes_file=SCENES_ROOT / "household-v2" / "episodes-v2.jsonl",
             agents=("map-navigator", "frame-searcher", "random-walker"),
             env_kwargs={"width": 160, "height": 120},
         ),

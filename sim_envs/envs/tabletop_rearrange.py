@@ -97,7 +97,10 @@ class TabletopRearrangeEnv(EpisodeLifecycle, LastFrameRendering, gym.Env):
     **Randomization**: an episode record (``episodes=`` file or set; ``reset(options={"episode":
     ...})`` or ``{"episode_index": i}``; otherwise one drawn with the reset seed) fixes the scene
     and the instruction (a record naming the id of the ``scene=`` given to the constructor uses
-    it). Without records the scene is generated from the reset seed
+    it). Version 2 files (``scenes/tabletop-v2/episodes-v2.jsonl``: object-library scenes, goals
+    named by name, synonym, attribute or function, the description kind recorded per goal) work
+    as they are: observation, actions and success are the same. Without records the scene is
+    generated from the reset seed
     (:func:`~sim_envs.scenes.gen_tabletop.generate_tabletop`) and 1-2 targets are drawn with it among the
     objects within 0.25 m of the line.
 

@@ -13,6 +13,14 @@ A file starts with a header line, then holds one episode per line::
 from ``scene_seed``). ``goals`` are ``{object_id, side}`` for rearrangement (side ``left`` or
 ``right``) and ``{object_id}`` for object search; ``start_pose`` is the agent's ``[x, y, yaw]``
 for search and ``null`` on a tabletop.
+
+Version 2 adds an optional per-episode ``description_kind``: how the instruction names the goal
+(one of :data:`sim_envs.scenes.descriptions.DESCRIPTION_KINDS`: ``name``, ``synonym``,
+``attribute``, ``function``, ``parent``), so reports can split by it; and per goal, optional ``description`` (the phrase that names the
+object, "the coffee mug") and ``description_kind`` (rearrangement episodes name one or two goals,
+each with the same kind as the episode's). A file whose episodes and goals
+carry no ``description_kind`` or ``description`` is written as version 1, byte for byte as before, and version 1
+files load as before.
 """
 
 from __future__ import annotations
@@ -27,8 +35,9 @@ import numpy as np
 
 from conceptfusion.errors import MissingFileError, SimError
 from conceptfusion.names import did_you_mean
-from conceptfusion.io_utils import atomic_write_text
+from conceptfusion.io_utils import atomic_write_text, read_text_file
 from sim_envs.envs.rearrange_eval import signed_line_distance
+from sim_envs.scenes.descriptions import DESCRIPTION_KINDS
 from sim_envs.scenes.format import Scene, load_scene
 from sim_envs.scenes.gen_tabletop import generate_tabletop
 
@@ -39,7 +48,7 @@ __all__ = [
 ]
 
 FORMAT = "cf-episodes"
-VERSION = 1
+VERSION = 2
 TASKS = ("tabletop_rearrange", "object_search")
 SIDES = ("left", "right")
 SCENES_ROOT = Path(__file__).resolve().parents[2] / "scenes"
@@ -56,6 +65,17 @@ class Goal:
 
     object_id: str
     side: str | None = None
+    description: str | None = None
+    """How the instruction names the object ("the coffee mug"); None: not recorded."""
+    description_kind: str | None = None
+    """The description's kind (a ``DESCRIPTION_KINDS`` entry); None: not recorded."""
+
+    def to_json(self) -> dict:
+        d: dict = {"object_id": self.object_id}
+        for key in ("side", "description", "description_kind"):
+            if getattr(self, key) is not None:
+                d[key] = getattr(self, key)
+        return d
 
 
 @dataclass(frozen=True)
@@ -71,13 +91,17 @@ class Episode:
     start_pose: tuple[float, float, float] | None = None
     """Agent start ``(x, y, yaw)`` for search tasks; ``None`` on a tabletop."""
     max_steps: int = 6
+    description_kind: str | None = None
+    """How ``instruction`` names the goal (a :data:`~sim_envs.scenes.descriptions.DESCRIPTION_KINDS`
+    entry); None: not recorded (version 1 episodes)."""
 
     def to_json(self) -> dict:
-        goals = [{"object_id": g.object_id, **({"side": g.side} if g.side is not None else {})} for g in self.goals]
+        goals = [g.to_json() for g in self.goals]
         return {
             "episode_id": self.episode_id, "scene": self.scene, "scene_seed": self.scene_seed,
             "instruction": self.instruction, "goals": goals,
             "start_pose": list(self.start_pose) if self.start_pose is not None else None, "max_steps": self.max_steps,
+            **({"description_kind": self.description_kind} if self.description_kind is not None else {}),
         }
 
 
@@ -90,7 +114,11 @@ class EpisodeSet:
     episodes: tuple[Episode, ...]
 
     def header(self) -> dict:
-        return {"format": FORMAT, "version": VERSION, "task": self.task, "generator_seed": self.generator_seed}
+        version = 2 if any(
+            e.description_kind is not None or any(g.description is not None or g.description_kind is not None for g in e.goals)
+            for e in self.episodes
+        ) else 1
+        return {"format": FORMAT, "version": version, "task": self.task, "generator_seed": self.generator_seed}
 
 
 # ------------------------------------------------------------------------------------ loading
@@ -117,7 +145,7 @@ def _resolve_scene_cached(ref: str, scene_seed: int, root: str) -> Scene:
     raise MissingFileError(f"scene {ref!r}: no file {ref}.json under {base}, and only tabletop-NNNN ids can be generated")
 
 
-_EPISODE_FIELDS = ("episode_id", "scene", "scene_seed", "instruction", "goals", "start_pose", "max_steps")
+_EPISODE_FIELDS = ("episode_id", "scene", "scene_seed", "instruction", "goals", "start_pose", "max_steps", "description_kind")
 _HEADER_FIELDS = ("format", "version", "task", "generator_seed")
 
 
@@ -153,7 +181,12 @@ def _parse_episode(d, task: str, where: str) -> Episode:
     for k, g in enumerate(goals_raw):
         if not isinstance(g, dict) or not isinstance(g.get("object_id"), str) or not g["object_id"]:
             raise EpisodeFormatError(f"{where}: goals[{k}] expected {{'object_id': str, ...}}, got {g!r}")
-        _check_keys(g, ("object_id", "side"), f"{where}: goals[{k}]")
+        _check_keys(g, ("object_id", "side", "description", "description_kind"), f"{where}: goals[{k}]")
+        desc, desc_kind = g.get("description"), g.get("description_kind")
+        if desc is not None and (not isinstance(desc, str) or not desc.strip()):
+            raise EpisodeFormatError(f"{where}: goals[{k}].description expected a non-empty string, got {desc!r}")
+        if desc_kind is not None and desc_kind not in DESCRIPTION_KINDS:
+            raise EpisodeFormatError(f"{where}: goals[{k}].description_kind expected null or one of {DESCRIPTION_KINDS}, got {desc_kind!r}")
         side = g.get("side")
         if task == "tabletop_rearrange" and side not in SIDES:
             raise EpisodeFormatError(f"{where}: goals[{k}].side expected one of {SIDES}, got {side!r}")
@@ -162,7 +195,7 @@ def _parse_episode(d, task: str, where: str) -> Episode:
         if g["object_id"] in ids:
             raise EpisodeFormatError(f"{where}: goals[{k}].object_id {g['object_id']!r} repeats goals[{ids.index(g['object_id'])}]")
         ids.append(g["object_id"])
-        goals.append(Goal(g["object_id"], side))
+        goals.append(Goal(g["object_id"], side, desc, desc_kind))
     pose = d.get("start_pose")
     if pose is not None:
         if not isinstance(pose, list) or len(pose) != 3 or not all(
@@ -176,25 +209,18 @@ def _parse_episode(d, task: str, where: str) -> Episode:
     scene_seed = _field(d, "scene_seed", int, where)
     if scene_seed < 0:
         raise EpisodeFormatError(f"{where}: 'scene_seed' expected >= 0, got {scene_seed}")
+    kind = d.get("description_kind")
+    if kind is not None and kind not in DESCRIPTION_KINDS:
+        raise EpisodeFormatError(f"{where}: 'description_kind' expected null or one of {DESCRIPTION_KINDS}, got {kind!r}")
     return Episode(
         episode_id=_field(d, "episode_id", str, where), scene=_field(d, "scene", str, where),
         scene_seed=scene_seed, instruction=_field(d, "instruction", str, where),
-        goals=tuple(goals), start_pose=pose, max_steps=max_steps,
+        goals=tuple(goals), start_pose=pose, max_steps=max_steps, description_kind=kind,
     )
 
 
 def _read_lines(p: Path) -> list[str]:
-    if not p.is_file():
-        if p.exists():
-            raise EpisodeFormatError(f"{p}: expected an episode file, got a {'folder' if p.is_dir() else 'special file'}")
-        raise MissingFileError(f"episode file not found: {p}")
-    data = p.read_bytes()
-    try:
-        text = data.decode("utf-8")
-    except UnicodeDecodeError as exc:
-        line = data[: exc.start].count(b"\n") + 1
-        raise EpisodeFormatError(f"{p}:line {line}: not an episode file: not UTF-8 text (byte 0x{data[exc.start]:02x})") from None
-    return text.splitlines()
+    return read_text_file(p, "episode file", EpisodeFormatError).splitlines()
 
 
 def _parse_header(header, where: str) -> tuple[str, int | None]:

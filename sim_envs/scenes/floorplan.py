@@ -41,7 +41,8 @@ def _in_box(x, y, centre, yaw: float, half) -> np.ndarray:
 
 
 def occupancy_grid(scene, *, cell: float = 0.05, margin: float = 0.5) -> Occupancy:
-    """Cells outside every room, on a wall (doors are gaps) or under furniture are blocked.
+    """Cells outside every room, on a wall (doors are gaps), under furniture or under an object
+    standing on the floor (``support == "floor"``) are blocked.
 
     ``scene`` must have rooms (a household scene); ``ValueError`` otherwise.
     """
@@ -68,6 +69,9 @@ def occupancy_grid(scene, *, cell: float = 0.05, margin: float = 0.5) -> Occupan
             blocked |= _in_box(x, y, (sx + ux * m, sy + uy * m), yaw, ((b - a) / 2, wall.thickness / 2))
     for f in scene.furniture:
         blocked |= _in_box(x, y, f.position, f.yaw, (f.size[0] / 2, f.size[1] / 2))
+    for o in scene.objects:  # objects standing on the floor (a chair, a bench) block it like furniture
+        if getattr(o, "support", None) == "floor":
+            blocked |= _in_box(x, y, o.position, o.yaw, (o.size[0] / 2, o.size[1] / 2))
     return Occupancy(blocked, grid.origin, grid.cell)
 
 

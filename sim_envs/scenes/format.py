@@ -36,10 +36,10 @@ from pathlib import Path
 
 import numpy as np
 
-from conceptfusion.io_utils import atomic_write_text
+from conceptfusion.io_utils import atomic_write_text, read_text_file
 from sim_envs.assets.objects import ALL_ASSETS, COLORS
 from sim_envs.assets.library.catalogue import is_library_asset, scene_instance
-from conceptfusion.errors import MissingFileError, SceneFormatError
+from conceptfusion.errors import SceneFormatError
 from sim_envs.scenes.household_format import (
     Furniture, Room, Wall, check_fields, check_supports, parse_furniture, parse_list, parse_material, parse_number, parse_phrases, parse_rooms,
     parse_text, parse_vector, parse_walls,
@@ -292,15 +292,7 @@ def load_scene(path: str | os.PathLike) -> Scene:
     valid scene (see :func:`scene_from_json`).
     """
     p = Path(path)
-    if not p.is_file():
-        if p.exists():
-            raise SceneFormatError(f"{p}: expected a scene file, got a {'folder' if p.is_dir() else 'special file'}")
-        raise MissingFileError(f"scene file not found: {p}")
-    data = p.read_bytes()
-    try:
-        text = data.decode("utf-8")
-    except UnicodeDecodeError as exc:
-        raise SceneFormatError(f"{p}: not a scene file: not UTF-8 text (byte 0x{data[exc.start]:02x} at offset {exc.start})") from None
+    text = read_text_file(p, "scene file", SceneFormatError)
     try:
         doc = json.loads(text)
     except json.JSONDecodeError as exc:

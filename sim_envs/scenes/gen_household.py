@@ -21,7 +21,7 @@ from sim_envs.assets.furniture import FURNITURE, Surface
 from sim_envs.scenes.household_format import CONTAINER_FLOOR, Furniture, Room, Wall
 from sim_envs.scenes.format import Scene, SceneObject
 
-__all__ = ["generate_household", "ROOM_FURNITURE"]
+__all__ = ["generate_household", "furnished_apartment", "support_surfaces", "place_on_surface", "door_keep_out", "ROOM_FURNITURE"]
 
 ROOM_FURNITURE: dict[str, tuple[tuple[str, ...], tuple[str, ...]]] = {
     "kitchen": (("counter", "dining table"), ("counter", "shelf", "cabinet", "basket", "chair")),
@@ -148,6 +148,19 @@ def _front(f: Furniture, dist: float) -> np.ndarray:
     return f.to_world((0.0, -dist))
 
 
+def door_keep_out(doors) -> list[tuple[np.ndarray, np.ndarray]]:
+    """World xy boxes (lower, upper corner) kept free in front of and behind each door.
+
+    ``doors`` are ``(centre xy, along-wall unit vector, width)`` as the layout records them.
+    """
+    keep_out = []
+    for (cx, cy), u, width in doors:
+        along, across = (width / 2 + 0.3), _DOOR_CLEAR
+        hx, hy = (along, across) if abs(u[0]) > 0.5 else (across, along)
+        keep_out.append((np.array([cx - hx, cy - hy]), np.array([cx + hx, cy + hy])))
+    return keep_out
+
+
 def _furnish(rng, room: Room, doors, names: set[str], start_index: int) -> list[Furniture]:
     required, optional = ROOM_FURNITURE[room.name]
     n = int(rng.integers(max(2, len(required)), 6))
@@ -155,11 +168,7 @@ def _furnish(rng, room: Room, doors, names: set[str], start_index: int) -> list[
     kinds = list(required) + extra[: n - len(required)]
     (x0, y0), (x1, y1) = room.floor
     ix0, iy0, ix1, iy1 = x0 + _WALL_T / 2 + 0.02, y0 + _WALL_T / 2 + 0.02, x1 - _WALL_T / 2 - 0.02, y1 - _WALL_T / 2 - 0.02
-    keep_out = []
-    for (cx, cy), u, width in doors:
-        along, across = (width / 2 + 0.3), _DOOR_CLEAR
-        hx, hy = (along, across) if abs(u[0]) > 0.5 else (across, along)
-        keep_out.append((np.array([cx - hx, cy - hy]), np.array([cx + hx, cy + hy])))
+    keep_out = door_keep_out(doors)
     placed: list[Furniture] = []
     for kind in kinds:
         fid = f"f{start_index + len(placed)}"
@@ -199,7 +208,7 @@ def _furnish(rng, room: Room, doors, names: set[str], start_index: int) -> list[
     return placed
 
 
-def _surfaces(furniture: list[Furniture], max_z: float = 1.25):
+def support_surfaces(furniture: list[Furniture], max_z: float = 1.25) -> list[tuple[Furniture, Surface, float]]:
     """(piece, surface, free height above it) for every surface low enough for a 1.3 m camera to see."""
     out = []
     for f in furniture:
@@ -218,7 +227,13 @@ def _new_object(rng, oid: str, kind: str, color: str, scale=(0.9, 1.15)) -> Scen
     return SceneObject(oid, f"{color} {a.category}", a.category, kind, color, (0.0, 0.0, 0.0), 0.0, size, (f"a {color} {a.category}",) + a.phrases)
 
 
-def _place_on(rng, obj: SceneObject, f: Furniture, s: Surface, clear: float, taken: list) -> SceneObject | None:
+def place_on_surface(rng, obj: SceneObject, f: Furniture, s: Surface, clear: float, taken: list) -> SceneObject | None:
+    """``obj`` moved to a random free spot of surface ``s`` of piece ``f`` at a random yaw, or None.
+
+    None when it is taller than ``clear`` - 3 cm, does not fit, or its footprint (in the piece's
+    frame) comes within 3 cm of a box in ``taken``; on success its box is appended to ``taken``.
+    On shelves and inside cabinets it stays in the front 60 % (visible from the room).
+    """
     if obj.size[2] > clear - 0.03:
         return None
     rel = float(rng.uniform(-math.pi, math.pi))
@@ -248,7 +263,7 @@ def _unique_kind_color(rng, names: set[str], kinds=_OBJECT_KINDS) -> tuple[str, 
 
 
 def _populate(rng, furniture: list[Furniture], min_objects: int) -> list[SceneObject]:
-    surfaces = _surfaces(furniture)
+    surfaces = support_surfaces(furniture)
     taken = {i: [] for i in range(len(surfaces))}
     objects: list[SceneObject] = []
     names: set[str] = set()
@@ -259,7 +274,7 @@ def _populate(rng, furniture: list[Furniture], min_objects: int) -> list[SceneOb
         for _ in range(12):
             i = where[int(rng.integers(len(where)))]
             f, s, clear = surfaces[i]
-            o = _place_on(rng, proto, f, s, clear - (0.14 if kind == "bowl" else 0.0), taken[i])
+            o = place_on_surface(rng, proto, f, s, clear - (0.14 if kind == "bowl" else 0.0), taken[i])
             if o is not None:
                 objects.append(o)
                 names.add(o.name)
@@ -291,18 +306,27 @@ def generate_household(seed: int, *, min_objects: int = 20) -> Scene:
     furniture is re-drawn (same stream) until a 0.25 m-radius disc can reach every room.
     """
     rng = np.random.default_rng(seed)
+    scene, _ = furnished_apartment(rng, seed, f"household-{seed:04d}")
+    furniture = list(scene.furniture)
+    objects = _populate(rng, furniture, min_objects)
+    if len(objects) < min_objects:
+        raise RuntimeError(f"generate_household({seed}): placed {len(objects)} objects, expected at least {min_objects}")
+    return Scene(scene.id, "household", int(seed), None, tuple(objects), None, {}, scene.rooms, scene.walls, tuple(furniture))
+
+
+def furnished_apartment(rng: np.random.Generator, seed: int, scene_id: str) -> tuple[Scene, dict]:
+    """Rooms, walls with doors and furniture (no objects) drawn from ``rng``, and the doors.
+
+    The furniture is re-drawn (same stream) until a 0.25 m-radius disc can reach every room.
+    Returns the scene and, per room id, its doors as ``(centre xy, along-wall unit, width)``.
+    """
     cells, widths, depths, doors = _layout(rng)
     rooms, walls, door_spans = _rooms_and_walls(rng, cells, widths, depths, doors)
     for _ in range(20):
         furniture, fnames = [], set()
         for room in rooms:
             furniture += _furnish(rng, room, door_spans.get(room.id, []), fnames, len(furniture))
-        scene = Scene(f"household-{seed:04d}", "household", int(seed), None, (), None, {}, tuple(rooms), tuple(walls), tuple(furniture))
+        scene = Scene(scene_id, "household", int(seed), None, (), None, {}, tuple(rooms), tuple(walls), tuple(furniture))
         if reachable_rooms(scene) == {r.id for r in rooms}:
-            break
-    else:
-        raise RuntimeError(f"generate_household({seed}): no furniture arrangement left every room reachable")
-    objects = _populate(rng, furniture, min_objects)
-    if len(objects) < min_objects:
-        raise RuntimeError(f"generate_household({seed}): placed {len(objects)} objects, expected at least {min_objects}")
-    return Scene(scene.id, "household", int(seed), None, tuple(objects), None, {}, tuple(rooms), tuple(walls), tuple(furniture))
+            return scene, door_spans
+    raise RuntimeError(f"generate_household({seed}): no furniture arrangement left every room reachable")

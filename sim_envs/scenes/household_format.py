@@ -22,22 +22,70 @@ from __future__ import annotations
 
 import math
 from dataclasses import dataclass, fields
+from functools import lru_cache
 
 import numpy as np
 
 from conceptfusion.errors import SceneFormatError
 from conceptfusion.names import did_you_mean
 from sim_envs.assets.furniture import FURNITURE, MATERIALS, Surface
+from sim_envs.assets.library.catalogue import get_instance, is_library_asset
+from sim_envs.assets.library.export import instance_parts
 
 __all__ = [
     "parse_vector", "parse_number", "parse_text", "parse_list", "parse_phrases", "parse_material",
     "check_fields",
     "Room", "Wall", "Furniture", "CONTAINER_FLOOR", "parse_rooms", "parse_walls", "parse_furniture",
-    "check_supports", "support_surface_z",
+    "check_supports", "support_surface_z", "LIBRARY_CONTAINERS", "container_floor",
 ]
 
 CONTAINER_FLOOR: dict[str, float] = {"bowl": 0.01}
 """Object assets that are open containers: height of the inner floor above the base (metres)."""
+
+LIBRARY_CONTAINERS: frozenset[str] = frozenset({"bowl", "basket", "crate", "tray"})
+"""Object library categories whose instances are open containers that things are put inside."""
+
+
+@lru_cache(maxsize=None)
+def _library_floor_fraction(instance_id: str) -> float | None:
+    """Inner floor height of a library container as a fraction of its height (None: no floor).
+
+    From the procedural parts: the inner floor of every open vessel part (its lowest point plus
+    its ``floor``) and the top of every solid part that rests at the bottom and covers the
+    centre (an open box's floor slab, a pedestal); the highest of these, over the instance's
+    whole height (what the exported mesh is normalised by).
+    """
+    inst = get_instance(instance_id)
+    if inst.category not in LIBRARY_CONTAINERS or inst.mesh is not None:
+        return None
+    parts = instance_parts(inst)
+    z = [p.mesh.vertices[:, 2] for p in parts]
+    z0, z1 = min(v.min() for v in z), max(v.max() for v in z)
+    tops = []
+    for p in parts:
+        v = p.mesh.vertices
+        if p.collision == "hollow":
+            tops.append(v[:, 2].min() + p.floor)
+        elif p.collision == "hull" and v[:, 2].min() <= z0 + 1e-6 and np.all(v[:, :2].min(0) <= 0) and np.all(v[:, :2].max(0) >= 0):
+            tops.append(v[:, 2].max())
+    if not tops or z1 <= z0:
+        return None
+    return float((max(tops) - z0) / (z1 - z0))
+
+
+def container_floor(asset: str, size) -> float | None:
+    """Height (metres) of an open container's inner floor above its base, for an object of this
+    ``asset`` and ``size`` (x, y, z); None when the asset is no open container.
+
+    Covers the primitive assets of :data:`CONTAINER_FLOOR` and the library instances
+    (``"lib:<id>"``) of the :data:`LIBRARY_CONTAINERS` categories.
+    """
+    if asset in CONTAINER_FLOOR:
+        return CONTAINER_FLOOR[asset]
+    if is_library_asset(asset):
+        frac = _library_floor_fraction(get_instance(asset).id)
+        return None if frac is None else frac * float(size[2])
+    return None
 
 
 @dataclass(frozen=True)
@@ -303,8 +351,9 @@ def support_surface_z(obj, support, *, tol: float = 0.01) -> tuple[float | None,
     half = np.asarray(support.size[:2]) / 2
     if np.any(np.abs(np.asarray([x, y]) - np.asarray(support.position[:2])) > half + tol):
         return None, f"its centre ({x:.3f}, {y:.3f}) is off {support.id!r}"
-    if support.asset in CONTAINER_FLOOR:
-        return support.position[2] + CONTAINER_FLOOR[support.asset], "inside"
+    floor = container_floor(support.asset, support.size)
+    if floor is not None:
+        return support.position[2] + floor, "inside"
     return support.position[2] + support.size[2], "top"
 
 

@@ -5,6 +5,9 @@ An episode names a household scene, one goal object, the goal description the ag
 goal is reachable (the success region has a finite geodesic distance).
 
     python -m sim_envs.scenes.search_episodes    # regenerates scenes/household/episodes-v1.jsonl
+
+Version 2 episodes (:mod:`sim_envs.scenes.search_episodes_v2`) name the goal by name, synonym,
+attribute or function (:func:`sim_envs.scenes.descriptions.describe`) and record which.
 """
 
 from __future__ import annotations
@@ -16,6 +19,7 @@ import numpy as np
 from scipy import ndimage
 
 from planners.geodesic import geodesic_to_goal
+from sim_envs.scenes.descriptions import describe
 from sim_envs.scenes.episodes import SCENES_ROOT, Episode, EpisodeSet, Goal, load_episodes, save_episodes
 from sim_envs.scenes.floorplan import occupancy_grid
 from sim_envs.scenes.format import Scene, load_scene
@@ -44,6 +48,7 @@ def _goal_mask(occ, lo, hi, radius: float) -> np.ndarray:
 def generate_search_episodes(
     scene_files: list[Path], *, per_scene: int = 5, generator_seed: int = 0, max_steps: int = 250,
     robot_radius: float = 0.25, success_distance: float = 1.0, scenes_root: str | Path | None = None,
+    description_kinds: tuple[str, ...] | None = None, id_prefix: str = "search-v1",
 ) -> EpisodeSet:
     """``per_scene`` episodes for each scene file (paths under ``scenes/``).
 
@@ -51,8 +56,17 @@ def generate_search_episodes(
     + 0.1 m) in another room, with a finite geodesic distance to the goal's success region.
     Everything follows from ``generator_seed``. Scene paths in the episodes are relative to
     ``scenes_root`` (default: the shipped ``scenes/`` folder).
+
+    ``description_kinds`` None: the instruction is ``"the <object name>"`` (version 1). Otherwise
+    episode ``k`` asks for kind ``description_kinds[k % len]`` (then the following kinds, when no
+    description of that kind singles the goal out; a goal no kind singles out is skipped) and
+    records it in ``description_kind`` (the episode's and its goal's, with the goal's
+    ``description``); descriptions draw from their own generator (seeded
+    ``generator_seed + 1``), so the goals and starts are those of version 1. Episode ids read
+    ``<id_prefix>-NNNN``.
     """
     rng = np.random.default_rng(generator_seed)
+    text_rng = np.random.default_rng(generator_seed + 1)
     episodes = []
     for path in scene_files:
         path = Path(path)
@@ -71,6 +85,17 @@ def generate_search_episodes(
             if made >= per_scene:
                 break
             obj = scene.objects[int(oi)]
+            instruction, kind = f"the {obj.name}", None
+            if description_kinds:
+                k0 = len(episodes)
+                for j in range(len(description_kinds)):
+                    kind = description_kinds[(k0 + j) % len(description_kinds)]
+                    phrase = describe(obj, scene.objects, kind, text_rng)
+                    if phrase is not None:
+                        instruction = phrase
+                        break
+                else:
+                    continue
             goal_room = room_of(scene, obj.position[:2])
             lo, hi = obj.footprint()
             mask = _goal_mask(occ, lo, hi, success_distance)
@@ -84,9 +109,11 @@ def generate_search_episodes(
                 yaw = float(rng.uniform(-math.pi, math.pi))
                 episodes.append(
                     Episode(
-                        episode_id=f"search-v1-{len(episodes):04d}", scene=rel, scene_seed=scene.seed,
-                        instruction=f"the {obj.name}", goals=(Goal(obj.id),),
+                        episode_id=f"{id_prefix}-{len(episodes):04d}", scene=rel, scene_seed=scene.seed,
+                        instruction=instruction,
+                        goals=(Goal(obj.id, description=instruction, description_kind=kind) if kind else Goal(obj.id),),
                         start_pose=(round(xy[0], 3), round(xy[1], 3), round(yaw, 4)), max_steps=max_steps,
+                        description_kind=kind,
                     )
                 )
                 made += 1

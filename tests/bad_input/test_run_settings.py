@@ -53,7 +53,7 @@ def _cli(capsys, tmp_path, *args) -> tuple[int, str, Path]:
     ({"address": "127.0.0.1:6379"}, r"^--address: only for --backend ray"),
     ({"backend": "ray", "address": "host:port"}, r"^--address: expected 'auto', 'HOST:PORT' or 'ray://HOST:PORT', got 'host:port'$"),
     ({"suites": ("serch",)}, r"^--suite: unknown suite 'serch'; did you mean 'search'"),
-    ({"suites": ()}, r"^--suite: expected at least one suite \(suites: rearrange, search"),
+    ({"suites": ()}, r"^--suite: expected at least one suite \(suites: rearrange, rearrange-v2, search, search-v2"),
     ({"suites": RUN * 2}, r"^--suite: each name once, got 'regression-rearrange' more than once$"),
     ({"agents": ("map-puser",)}, r"^--agent: unknown agent 'map-puser'; did you mean 'map-pusher'"),
     ({"agents": ("map-navigator",)}, r"^--agent: agent 'map-navigator' solves object_search, not suite 'regression-rearrange'.*"

@@ -1,0 +1,87 @@
+"""The shipped household v2 data: 20 apartments on evaluation seeds and 120 object-search episodes.
+
+    python -m sim_envs.scenes.search_episodes_v2            # (re)writes scenes/household-v2/
+    python -m sim_envs.scenes.search_episodes_v2 --check    # exit 1 if the shipped files differ
+
+Apartments come from :func:`~sim_envs.scenes.gen_household_v2.generate_household_v2` on the first
+:data:`NUM_APARTMENTS` seeds of the split file's ``evaluation`` range; episodes from
+:func:`~sim_envs.scenes.search_episodes.generate_search_episodes`, 6 per apartment, goals named
+in turn by name, synonym, attribute and function (``description_kind`` per episode).
+"""
+
+from __future__ import annotations
+
+import argparse
+import json
+import sys
+
+from conceptfusion.io_utils import atomic_write_text
+from sim_envs.scenes.episodes import SCENES_ROOT, EpisodeSet, episodes_text, load_episodes, save_episodes
+from sim_envs.scenes.gen_household_v2 import generate_household_v2
+from sim_envs.scenes.search_episodes import generate_search_episodes
+from sim_envs.scenes.splits import splits
+
+__all__ = ["V2_DIR", "V2_SEARCH_FILE", "NUM_APARTMENTS", "PER_SCENE", "V2_DESCRIPTION_KINDS", "apartment_seeds",
+           "v2_search_episodes", "main"]
+
+V2_DIR = SCENES_ROOT / "household-v2"
+"""Folder of the shipped v2 apartments and episodes."""
+V2_SEARCH_FILE = V2_DIR / "episodes-v2.jsonl"
+"""The shipped v2 object-search episodes."""
+NUM_APARTMENTS = 20
+PER_SCENE = 6
+V2_DESCRIPTION_KINDS = ("name", "synonym", "attribute", "function")
+"""How v2 goals are named, in turn."""
+_GENERATOR_SEED = 2
+
+
+def apartment_seeds() -> list[int]:
+    """Seeds of the shipped v2 apartments: the first :data:`NUM_APARTMENTS` evaluation seeds."""
+    return splits().seeds_of("evaluation", NUM_APARTMENTS)
+
+
+def v2_search_episodes() -> EpisodeSet:
+    """The shipped v2 object-search episodes (``scenes/household-v2/episodes-v2.jsonl``)."""
+    return load_episodes(V2_SEARCH_FILE)
+
+
+def _expected() -> dict:
+    """File name -> text of everything under :data:`V2_DIR`."""
+    out = {}
+    for seed in apartment_seeds():
+        scene = generate_household_v2(seed)
+        out[f"{scene.id}.json"] = json.dumps(scene.to_json(), indent=1)
+    return out
+
+
+def main(argv: list[str] | None = None) -> int:
+    p = argparse.ArgumentParser(prog="python -m sim_envs.scenes.search_episodes_v2", description=__doc__.splitlines()[0])
+    p.add_argument("--check", action="store_true", help="compare with the shipped files instead of writing them")
+    args = p.parse_args(argv)
+    scenes = _expected()
+    if args.check:
+        bad = [name for name, text in scenes.items() if not (V2_DIR / name).is_file() or (V2_DIR / name).read_text() != text]
+        extra = sorted(f.name for f in V2_DIR.glob("household-v2-*.json") if f.name not in scenes)
+        files = [V2_DIR / name for name in sorted(scenes)]
+        eps = generate_search_episodes(files, per_scene=PER_SCENE, generator_seed=_GENERATOR_SEED,
+                                       description_kinds=V2_DESCRIPTION_KINDS, id_prefix="search-v2")
+        if not V2_SEARCH_FILE.is_file() or V2_SEARCH_FILE.read_text() != episodes_text(eps):
+            bad.append(V2_SEARCH_FILE.name)
+        if bad or extra:
+            print(f"{V2_DIR}: differs from the generators: {', '.join(bad + extra)}")
+            return 1
+        print(f"{V2_DIR}: {len(scenes)} apartments and {len(eps.episodes)} episodes match the generators")
+        return 0
+    V2_DIR.mkdir(parents=True, exist_ok=True)
+    for name in sorted(scenes):
+        atomic_write_text(V2_DIR / name, scenes[name])
+    files = [V2_DIR / name for name in sorted(scenes)]
+    eps = generate_search_episodes(files, per_scene=PER_SCENE, generator_seed=_GENERATOR_SEED,
+                                   description_kinds=V2_DESCRIPTION_KINDS, id_prefix="search-v2")
+    save_episodes(eps, V2_SEARCH_FILE)
+    print(f"wrote {len(scenes)} apartments and {len(eps.episodes)} episodes to {V2_DIR}")
+    return 0
+
+
+if __name__ == "__main__":
+    sys.exit(main())
