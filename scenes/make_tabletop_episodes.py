@@ -9,15 +9,14 @@ from __future__ import annotations
 import argparse
 import json
 import sys
-from pathlib import Path
 
+from scenes.shipped import write_or_check
 from sim_envs.scenes.episodes import episodes_text, generate_tabletop_episodes
 
 __all__ = ["GENERATOR_SEED", "COUNT", "build_files", "main"]
 
 GENERATOR_SEED = 2023
 COUNT = 150
-ROOT = Path(__file__).resolve().parent
 
 
 def build_files(generator_seed: int = GENERATOR_SEED, count: int = COUNT) -> dict[str, str]:
@@ -30,20 +29,10 @@ def build_files(generator_seed: int = GENERATOR_SEED, count: int = COUNT) -> dic
 
 
 def main(argv: list[str] | None = None) -> int:
-    from conceptfusion.io_utils import atomic_write_text
-
     ap = argparse.ArgumentParser(description=__doc__.splitlines()[0])
     ap.add_argument("--check", action="store_true", help="compare with the shipped files instead of writing")
     args = ap.parse_args(argv)
-    files = build_files()
-    if args.check:
-        bad = [p for p, text in files.items() if not (ROOT / p).is_file() or (ROOT / p).read_text() != text]
-        print(f"{len(files) - len(bad)}/{len(files)} files match" + (f"; differ: {bad[:5]}" if bad else ""))
-        return 1 if bad else 0
-    for p, text in files.items():
-        atomic_write_text(ROOT / p, text)
-    print(f"wrote {len(files)} files under {ROOT / 'tabletop'}")
-    return 0
+    return write_or_check(build_files(), "tabletop", check=args.check)
 
 
 if __name__ == "__main__":

@@ -13,9 +13,9 @@ from __future__ import annotations
 import argparse
 import json
 import sys
-from pathlib import Path
 
 from sim_envs.pybullet.reach import PandaReach
+from scenes.shipped import write_or_check
 from sim_envs.scenes.episodes import episodes_text
 from sim_envs.scenes.gen_tabletop_v2 import TABLE
 from sim_envs.scenes.splits import splits
@@ -26,7 +26,6 @@ __all__ = ["GENERATOR_SEED", "COUNT", "FOLDER", "build_files", "main"]
 GENERATOR_SEED = 2026
 COUNT = 160
 FOLDER = "tabletop-v2"
-ROOT = Path(__file__).resolve().parent
 
 
 def build_files(generator_seed: int = GENERATOR_SEED, count: int = COUNT) -> dict[str, str]:
@@ -44,26 +43,10 @@ def build_files(generator_seed: int = GENERATOR_SEED, count: int = COUNT) -> dic
 
 
 def main(argv: list[str] | None = None) -> int:
-    from conceptfusion.io_utils import atomic_write_text
-
     ap = argparse.ArgumentParser(description=__doc__.splitlines()[0])
     ap.add_argument("--check", action="store_true", help="compare with the shipped files instead of writing")
     args = ap.parse_args(argv)
-    files = build_files()
-    if args.check:
-        shipped = {str(p.relative_to(ROOT)) for p in (ROOT / FOLDER).glob("*")} if (ROOT / FOLDER).is_dir() else set()
-        bad = [p for p, text in files.items() if not (ROOT / p).is_file() or (ROOT / p).read_text() != text]
-        extra = sorted(shipped - set(files))
-        print(f"{len(files) - len(bad)}/{len(files)} files match" + (f"; differ: {bad[:5]}" if bad else "")
-              + (f"; not generated: {extra[:5]}" if extra else ""))
-        return 1 if bad or extra else 0
-    stale = [p for p in (ROOT / FOLDER).glob("*.json") if f"{FOLDER}/{p.name}" not in files] if (ROOT / FOLDER).is_dir() else []
-    for p in stale:  # scene files of an earlier generation
-        p.unlink()
-    for p, text in files.items():
-        atomic_write_text(ROOT / p, text)
-    print(f"wrote {len(files)} files under {ROOT / FOLDER}" + (f", removed {len(stale)} stale scene files" if stale else ""))
-    return 0
+    return write_or_check(build_files(), FOLDER, check=args.check)
 
 
 if __name__ == "__main__":

@@ -117,6 +117,26 @@ def augment(image: np.ndarray, rng: np.random.Generator) -> np.ndarray:
     return np.clip(out, 0, 255).astype(np.uint8)
 
 
+
+def _optimiser(model, config):
+    """The learnable logit scale (log 10 at start), AdamW over the tower and the scale, and the
+    learning rate per step: linear warm-up over the first 5% of steps, then cosine decay to 0.
+    The temperature is not decayed: decay would pull the logit scale towards 1."""
+    import torch
+
+    logit_scale = torch.nn.Parameter(torch.tensor(math.log(10.0)))
+    opt = torch.optim.AdamW([{"params": list(model.parameters())}, {"params": [logit_scale], "weight_decay": 0.0}],
+                            lr=config.lr, weight_decay=config.weight_decay)
+    warm = max(1, config.steps // 20)
+
+    def lr_at(step: int) -> float:
+        if step < warm:
+            return config.lr * (step + 1) / warm
+        t = (step - warm) / max(1, config.steps - warm)
+        return config.lr * 0.5 * (1 + math.cos(math.pi * t))
+
+    return logit_scale, opt, lr_at
+
 def train_tower(train: CropSet, targets_cd: np.ndarray, config: TrainConfig = TrainConfig(), *, log_every: int = 100):
     """Train a tower so crops land on their class targets; returns the torch module (eval mode).
 
@@ -134,17 +154,7 @@ def train_tower(train: CropSet, targets_cd: np.ndarray, config: TrainConfig = Tr
     torch.manual_seed(config.seed)
     rng = np.random.default_rng(config.seed)
     model = build_tower(config.tower)
-    logit_scale = torch.nn.Parameter(torch.tensor(math.log(10.0)))
-    # the temperature is not decayed: decay would pull the logit scale towards 1
-    opt = torch.optim.AdamW([{"params": list(model.parameters())}, {"params": [logit_scale], "weight_decay": 0.0}],
-                            lr=config.lr, weight_decay=config.weight_decay)
-    warm = max(1, config.steps // 20)
-
-    def lr_at(step: int) -> float:
-        if step < warm:
-            return config.lr * (step + 1) / warm
-        t = (step - warm) / max(1, config.steps - warm)
-        return config.lr * 0.5 * (1 + math.cos(math.pi * t))
+    logit_scale, opt, lr_at = _optimiser(model, config)
 
     targets = torch.from_numpy(np.ascontiguousarray(targets_cd, np.float32))
     labels = np.asarray(train.labels, np.int64)
@@ -253,16 +263,7 @@ def train_tower_multicaption(
     model = build_tower(config.tower)
     if init_onnx is not None:
         load_tower_weights_from_onnx(model, init_onnx)
-    logit_scale = torch.nn.Parameter(torch.tensor(math.log(10.0)))
-    opt = torch.optim.AdamW([{"params": list(model.parameters())}, {"params": [logit_scale], "weight_decay": 0.0}],
-                            lr=config.lr, weight_decay=config.weight_decay)
-    warm = max(1, config.steps // 20)
-
-    def lr_at(step: int) -> float:
-        if step < warm:
-            return config.lr * (step + 1) / warm
-        t = (step - warm) / max(1, config.steps - warm)
-        return config.lr * 0.5 * (1 + math.cos(math.pi * t))
+    logit_scale, opt, lr_at = _optimiser(model, config)
 
     def set_train() -> None:
         model.train()
