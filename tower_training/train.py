@@ -162,10 +162,10 @@ def main(argv: list[str] | None = None) -> int:
     logging.basicConfig(level=logging.INFO, format="%(asctime)s %(name)s: %(message)s")
     import torch
 
-    from conceptfusion.perception.image_tower import EmbeddedEncoder, TowerConfig, export_tower_onnx
+    from conceptfusion.perception.image_tower import TowerConfig
     from conceptfusion.perception.text_tower import MiniLMTextEncoder
     from tower_training.evaluate import evaluate_crops
-    from tower_training.training import CropSet, TrainConfig, class_targets, train_tower
+    from tower_training.training import CropSet, TrainConfig, class_targets, export_checked, train_tower
 
     torch.set_num_threads(max(1, args.threads))
     torch.use_deterministic_algorithms(True, warn_only=True)
@@ -214,15 +214,7 @@ def main(argv: list[str] | None = None) -> int:
         "torch_threads": int(torch.get_num_threads()),
         "command": "python -m tower_training.train " + " ".join(argv if argv is not None else sys.argv[1:]),
     }
-    export_tower_onnx(model, tower_cfg, args.out, metadata=meta)
-    enc = EmbeddedEncoder(args.out, text)
-    sample = data.images[: min(32, len(data))]
-    gap = float(np.max(np.abs(enc.encode_image(sample) - _embed_fn(model, tower_cfg.input_size)(sample))))
-    print(f"exported to {args.out} (onnxruntime vs torch max difference {gap:.1e})")
-    if gap > 1e-3:
-        print("onnxruntime and torch disagree", file=sys.stderr)
-        return 1
-    return 0
+    return export_checked(model, tower_cfg, args.out, meta, text, data.images[: min(32, len(data))])
 
 
 if __name__ == "__main__":

@@ -68,11 +68,11 @@ def main(argv: list[str] | None = None) -> int:
     logging.basicConfig(level=logging.INFO, format="%(asctime)s %(name)s: %(message)s")
     import torch
 
-    from conceptfusion.perception.image_tower import EmbeddedEncoder, TowerConfig, export_tower_onnx
+    from conceptfusion.perception.image_tower import TowerConfig
     from conceptfusion.perception.text_tower import MiniLMTextEncoder
     from sim_envs.scenes.splits import SplitError, splits
     from tower_training.evaluate_v2 import evaluate_crops_v2, val_selection_fn
-    from tower_training.training import CropSet, TrainConfig, torch_embed_fn as embed_fn, train_tower_multicaption
+    from tower_training.training import CropSet, TrainConfig, export_checked, torch_embed_fn as embed_fn, train_tower_multicaption
 
     torch.set_num_threads(max(1, args.threads))
     torch.use_deterministic_algorithms(True, warn_only=True)
@@ -140,12 +140,4 @@ def main(argv: list[str] | None = None) -> int:
                                                 "instance, category or split seed)"},
         "command": "python -m tower_training.train " + " ".join(argv),
     }
-    export_tower_onnx(model, tower_cfg, args.out, metadata=meta)
-    enc = EmbeddedEncoder(args.out, text)
-    sample = data.images[: min(32, len(data))]
-    gap = float(np.max(np.abs(enc.encode_image(sample) - embed_fn(model, tower_cfg.input_size)(sample))))
-    print(f"exported to {args.out} (onnxruntime vs torch max difference {gap:.1e})")
-    if gap > 1e-3:
-        print("onnxruntime and torch disagree", file=sys.stderr)
-        return 1
-    return 0
+    return export_checked(model, tower_cfg, args.out, meta, text, data.images[: min(32, len(data))])

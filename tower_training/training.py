@@ -25,7 +25,7 @@ from conceptfusion.perception.image_tower import TowerConfig, build_tower, prepr
 __all__ = [
     "CropSet", "TrainConfig", "class_targets", "train_tower", "retrieval_accuracy", "augment", "multicaption_loss",
     "train_tower_multicaption", "torch_embed_fn",
-    "load_tower_weights_from_onnx",
+    "load_tower_weights_from_onnx", "export_checked",
 ]
 
 logger = logging.getLogger(__name__)
@@ -375,3 +375,22 @@ def load_tower_weights_from_onnx(model, onnx_path) -> None:
             bn.running_var.fill_(1.0 - bn.eps)
         model.head.weight.copy_(torch.from_numpy(np.array(inits["head.weight"])))
         model.head.bias.copy_(torch.from_numpy(np.array(inits["head.bias"])))
+
+
+def export_checked(model, tower_cfg, out_dir, metadata: dict, text_encoder, sample_images) -> int:
+    """Export ``model`` to ONNX in ``out_dir`` with ``metadata`` (``tower.json``), reload it with
+    onnxruntime and compare its embeddings of ``sample_images`` with torch's; prints the largest
+    difference and returns the exit status of a training command (1 when they disagree by more
+    than 1e-3)."""
+    import sys
+
+    from conceptfusion.perception.image_tower import EmbeddedEncoder, export_tower_onnx
+
+    export_tower_onnx(model, tower_cfg, out_dir, metadata=metadata)
+    enc = EmbeddedEncoder(out_dir, text_encoder)
+    gap = float(np.max(np.abs(enc.encode_image(sample_images) - torch_embed_fn(model, tower_cfg.input_size)(sample_images))))
+    print(f"exported to {out_dir} (onnxruntime vs torch max difference {gap:.1e})")
+    if gap > 1e-3:
+        print("onnxruntime and torch disagree", file=sys.stderr)
+        return 1
+    return 0
