@@ -323,28 +323,41 @@ def calibrate_score_floor(config: FloorConfig = FloorConfig(), *, encoder=None, 
             log(f"{split} {sid}: {len(r['present'])} present, {len(r['absent'])} absent names "
                 f"({time.perf_counter() - t0:.1f} s)")
 
-    def pooled(rs):
-        return ([s for r in rs for s in r["present"].values()], [s for r in rs for s in r["absent"].values()])
-
-    floor = round(choose_floor(*pooled(per_split["calibration"])), 3)
+    floor = round(choose_floor(*_pooled(per_split["calibration"])), 3)
     out: dict = {"score_floor": floor, "config": {k: list(v) if isinstance(v, tuple) else v for k, v in asdict(config).items()}}
     for split, rs in per_split.items():
-        p, a = pooled(rs)
-        found, rejected = floor_rates(p, a, floor)
-        fp = [f"{r['scene']}: {n} ({s:.2f})" for r in rs for n, s in r["absent"].items() if s >= floor]
-        fn = [f"{r['scene']}: {n} ({s:.2f})" if math.isfinite(s) else f"{r['scene']}: {n} (not found)"
-              for r in rs for n, s in r["present"].items() if s < floor]
         # the hard absent names: same colour word as an object the scan saw ("blue mug" beside a blue can)
         hard = [s for r in rs for n, s in r["absent"].items()
                 if n.split()[0] in {q.split()[0] for q in r["present"]}]
-        out[split] = {
-            "present_found": round(found, 4), "absent_rejected": round(rejected, 4),
-            "absent_rejected_same_colour": round(floor_rates([], hard, floor)[1], 4), "n_absent_same_colour": len(hard),
-            "balanced_accuracy": round(0.5 * (found + rejected), 4),
-            "absent_found_without_floor": round(float(np.mean(np.isfinite(a))), 4),
-            "n_present": len(p), "n_absent": len(a), "scenes": [r["scene"] for r in rs],
-            "missed_present": fn, "found_absent_count": len(fp),
-        }
+        out[split] = _floor_summary(rs, floor, hard, "same_colour")
+    return out
+
+
+def _pooled(rs: list[dict]) -> tuple[list[float], list[float]]:
+    """Best-region scores of present and of absent names, pooled over scenes."""
+    return ([s for r in rs for s in r["present"].values()], [s for r in rs for s in r["absent"].values()])
+
+
+def _floor_summary(rs: list[dict], floor: float, hard: list[float], hard_kind: str, *, found_absent: int = 0) -> dict:
+    """How ``floor`` decides the present and absent names of scenes ``rs``: found and rejected
+    rates, the rejected rate among ``hard`` absent names (``hard_kind``: what makes them hard),
+    balanced accuracy, the names it misses, and (with ``found_absent``) the first absent names it
+    lets through."""
+    p, a = _pooled(rs)
+    found, rejected = floor_rates(p, a, floor)
+    fp = [f"{r['scene']}: {n} ({s:.2f})" for r in rs for n, s in r["absent"].items() if s >= floor]
+    fn = [f"{r['scene']}: {n} ({s:.2f})" if math.isfinite(s) else f"{r['scene']}: {n} (not found)"
+          for r in rs for n, s in r["present"].items() if s < floor]
+    out = {
+        "present_found": round(found, 4), "absent_rejected": round(rejected, 4),
+        f"absent_rejected_{hard_kind}": round(floor_rates([], hard, floor)[1], 4), f"n_absent_{hard_kind}": len(hard),
+        "balanced_accuracy": round(0.5 * (found + rejected), 4),
+        "absent_found_without_floor": round(float(np.mean(np.isfinite(a))), 4),
+        "n_present": len(p), "n_absent": len(a), "scenes": [r["scene"] for r in rs],
+        "missed_present": fn, "found_absent_count": len(fp),
+    }
+    if found_absent:
+        out["found_absent"] = fp[:found_absent]
     return out
 
 
@@ -389,29 +402,14 @@ def calibrate_score_floor_v2(config: FloorConfigV2 = FloorConfigV2(), *, encoder
         log(f"{part} {scene.id}: {len(r['present'])} present, {len(r['absent'])} absent names "
             f"({time.perf_counter() - t0:.1f} s)")
 
-    def pooled(rs):
-        return ([s for r in rs for s in r["present"].values()], [s for r in rs for s in r["absent"].values()])
-
-    floor = round(choose_floor(*pooled(per_split["calibration"])), 3)
+    floor = round(choose_floor(*_pooled(per_split["calibration"])), 3)
     out: dict = {"score_floor": floor, "world": "v2", "seeds": seeds,
                  "config": {"scenes": config.scenes, "frames": config.scan.frames, "width": config.scan.width,
                             "height": config.scan.height, "min_pixels": config.scan.min_pixels}}
     parent = {c: cat.categories[c].parents[0] if cat.categories[c].parents else "" for c in vocab}
     for part, rs in per_split.items():
-        p, a = pooled(rs)
-        found, rejected = floor_rates(p, a, floor)
-        fp = [f"{r['scene']}: {n} ({s:.2f})" for r in rs for n, s in r["absent"].items() if s >= floor]
-        fn = [f"{r['scene']}: {n} ({s:.2f})" if math.isfinite(s) else f"{r['scene']}: {n} (not found)"
-              for r in rs for n, s in r["present"].items() if s < floor]
         hard = [s for r in rs for n, s in r["absent"].items() if parent[n] in {parent[q] for q in r["present"]}]
-        out[part] = {
-            "present_found": round(found, 4), "absent_rejected": round(rejected, 4),
-            "absent_rejected_same_parent": round(floor_rates([], hard, floor)[1], 4), "n_absent_same_parent": len(hard),
-            "balanced_accuracy": round(0.5 * (found + rejected), 4),
-            "absent_found_without_floor": round(float(np.mean(np.isfinite(a))), 4),
-            "n_present": len(p), "n_absent": len(a), "scenes": [r["scene"] for r in rs],
-            "missed_present": fn, "found_absent_count": len(fp), "found_absent": fp[:40],
-        }
+        out[part] = _floor_summary(rs, floor, hard, "same_parent", found_absent=40)
     return out
 
 

@@ -137,6 +137,25 @@ def _optimiser(model, config):
 
     return logit_scale, opt, lr_at
 
+
+def _batch(train: CropSet, labels: np.ndarray, rng: np.random.Generator, config):
+    """A training batch: ``batch_size`` crops drawn with replacement, augmented, preprocessed;
+    returns the image tensor and the class labels."""
+    import torch
+
+    idx = rng.integers(0, len(labels), config.batch_size)
+    x = torch.from_numpy(preprocess([augment(train.images[i], rng) for i in idx], config.tower.input_size))
+    return x, torch.from_numpy(labels[idx])
+
+
+def _descend(opt, loss, lr: float) -> None:
+    """One optimiser step on ``loss`` at learning rate ``lr``."""
+    for g in opt.param_groups:
+        g["lr"] = lr
+    opt.zero_grad(set_to_none=True)
+    loss.backward()
+    opt.step()
+
 def train_tower(train: CropSet, targets_cd: np.ndarray, config: TrainConfig = TrainConfig(), *, log_every: int = 100):
     """Train a tower so crops land on their class targets; returns the torch module (eval mode).
 
@@ -160,17 +179,11 @@ def train_tower(train: CropSet, targets_cd: np.ndarray, config: TrainConfig = Tr
     labels = np.asarray(train.labels, np.int64)
     model.train()
     for step in range(config.steps):
-        idx = rng.integers(0, len(labels), config.batch_size)
-        x = torch.from_numpy(preprocess([augment(train.images[i], rng) for i in idx], config.tower.input_size))
-        y = torch.from_numpy(labels[idx])
-        for g in opt.param_groups:
-            g["lr"] = lr_at(step)
+        x, y = _batch(train, labels, rng, config)
         emb = model(x)
         logits = logit_scale.exp().clamp(max=100.0) * emb @ targets.T
         loss = torch.nn.functional.cross_entropy(logits, y)
-        opt.zero_grad(set_to_none=True)
-        loss.backward()
-        opt.step()
+        _descend(opt, loss, lr_at(step))
         if log_every and (step % log_every == 0 or step == config.steps - 1):
             acc = float((logits.argmax(1) == y).float().mean())
             logger.info("step %d/%d loss %.3f batch acc %.2f scale %.1f", step, config.steps, loss.item(), acc, logit_scale.exp().item())
@@ -290,17 +303,11 @@ def train_tower_multicaption(
 
     set_train()
     for step in range(config.steps):
-        idx = rng.integers(0, len(labels), config.batch_size)
-        x = torch.from_numpy(preprocess([augment(train.images[i], rng) for i in idx], config.tower.input_size))
-        y = torch.from_numpy(labels[idx])
-        for g in opt.param_groups:
-            g["lr"] = lr_at(step)
+        x, y = _batch(train, labels, rng, config)
         emb = model(x)
         logits = logit_scale.exp().clamp(max=100.0) * emb @ caps.T
         loss = multicaption_loss(logits, pos[y], wts)
-        opt.zero_grad(set_to_none=True)
-        loss.backward()
-        opt.step()
+        _descend(opt, loss, lr_at(step))
         if log_every and (step % log_every == 0 or step == config.steps - 1):
             hit = pos[y, logits.argmax(1)].float().mean()
             logger.info("step %d/%d loss %.3f batch top-1 caption is a positive %.2f scale %.1f",
