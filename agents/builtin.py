@@ -66,10 +66,12 @@ def _frame_pusher(encoder: str = "embedded", proposer: str = "rgbd"):
     return MapPusher(make_mapper(encoder, proposer, persistent=False), use_scan=False)
 
 
-def _map_navigator(encoder: str = "embedded", proposer: str = "rgbd", seed: int = 0, integrate_every: int = 1):
+def _map_navigator(encoder: str = "embedded", proposer: str = "rgbd", seed: int = 0, integrate_every: int = 1,
+                   keyframe_move: float = 0.0, keyframe_turn_deg: float = 0.0):
     from agents.navigator import MapNavigator, NavigatorConfig
 
-    return MapNavigator(make_mapper(encoder, proposer), NavigatorConfig(integrate_every=integrate_every), seed=seed)
+    config = NavigatorConfig(integrate_every=integrate_every, keyframe_move=keyframe_move, keyframe_turn_deg=keyframe_turn_deg)
+    return MapNavigator(make_mapper(encoder, proposer), config, seed=seed)
 
 
 def _frame_searcher(encoder: str = "embedded", proposer: str = "rgbd"):
@@ -119,7 +121,8 @@ register_agent(AgentSpec(
 register_agent(AgentSpec(
     "map-navigator", _map_navigator, "object_search",
     "ConceptFusion map built online; goal query, OMPL path to the goal or a frontier, pure pursuit, stop",
-    {**_PERCEPTION, "seed": _SEED, "integrate_every": Option.at_least(int, 1, 1)}, uses_map=True,
+    {**_PERCEPTION, "seed": _SEED, "integrate_every": Option.at_least(int, 1, 1),
+     "keyframe_move": Option.at_least(float, 0.0, 0.0), "keyframe_turn_deg": Option.at_least(float, 0.0, 0.0)}, uses_map=True,
 ))
 register_agent(AgentSpec(
     "frame-searcher", _frame_searcher, "object_search",

@@ -20,6 +20,7 @@ from __future__ import annotations
 
 import dataclasses
 from dataclasses import dataclass
+from types import MappingProxyType
 from typing import Mapping, Sequence
 
 import numpy as np
@@ -99,6 +100,7 @@ class ConceptMapper:
         self._negatives = None
         self.map = PointFusionMap(featurizer.dim, max_depth=config.max_depth)
         self.frames = 0
+        self._answers: dict[str, QueryResult] = {}
 
     @property
     def privileged(self) -> bool:
@@ -114,7 +116,14 @@ class ConceptMapper:
         """Start an empty map. Oracle perception needs the names of the segmentation ids."""
         self.map = PointFusionMap(self.featurizer.dim, max_depth=self.config.max_depth)
         self.frames = 0
+        self._answers.clear()
         self.featurizer.reset(object_names)
+
+    @property
+    def answers(self) -> Mapping[str, QueryResult]:
+        """The latest answer of :meth:`locate` to each description asked since the last
+        :meth:`reset` (a read-only view, for replays and reports; the agent's decisions never read it)."""
+        return MappingProxyType(self._answers)
 
     def text_vector(self, text: str) -> np.ndarray:
         """The featurizer's unit embedding of ``text`` (cached)."""
@@ -149,6 +158,11 @@ class ConceptMapper:
 
     def locate(self, text: str) -> QueryResult:
         """Where ``text`` is in the map: regions (best first), or ``found=False`` with a reason."""
+        res = self._locate(text)
+        self._answers[text] = res
+        return res
+
+    def _locate(self, text: str) -> QueryResult:
         c = self.config
         res = locate(
             self.map, self.text_vector(text), self.negatives(),

@@ -65,6 +65,20 @@ class NavigatorConfig:
     integrate_every: int = 1
     """Fuse every k-th frame while driving (every frame while looking around); > 1 trades map
     density for speed with slow encoders."""
+    keyframe_move: float = 0.0
+    """Fuse a frame only when the base has moved at least this far (m) or turned at least
+    ``keyframe_turn_deg`` since the last fused frame (the first frame always); 0 and 0: every
+    frame (as ``integrate_every`` says). Frames from nearly the same viewpoint add little to the
+    map but cost a full perception pass; skipping them changes what the agent sees, so it is off
+    by default."""
+    keyframe_turn_deg: float = 0.0
+    """The turn (degrees) that makes a frame a keyframe (see ``keyframe_move``)."""
+
+    def __post_init__(self) -> None:
+        for name in ("keyframe_move", "keyframe_turn_deg"):
+            value = getattr(self, name)
+            if not (isinstance(value, (int, float)) and not isinstance(value, bool) and 0 <= value < math.inf):
+                raise ValueError(f"{name}: expected a finite number >= 0, got {value!r}")
 
 
 class MapNavigator:
@@ -95,6 +109,7 @@ class MapNavigator:
         self._failures = 0
         self._visited: list[np.ndarray] = []
         self._closest_approach: float | None = None
+        self._last_fused: np.ndarray | None = None
         self.log: list[str] = []
         """Why the agent did what it did, one line per decision (for reports)."""
 
@@ -181,6 +196,17 @@ class MapNavigator:
             return search_action(0.0, self.config.look_angular)
         return search_action(cmd.linear, cmd.angular)
 
+    def _fuse_now(self, pose: np.ndarray) -> bool:
+        """Whether this step's frame goes into the map (``integrate_every``, then the keyframe rule)."""
+        c = self.config
+        if not (self._phase == "look" or self._steps % max(1, c.integrate_every) == 0):
+            return False
+        if self._last_fused is None or (c.keyframe_move <= 0 and c.keyframe_turn_deg <= 0):
+            return True
+        moved = float(np.hypot(*(pose[:2] - self._last_fused[:2])))
+        turned = abs(math.degrees(math.remainder(pose[2] - self._last_fused[2], 2 * math.pi)))
+        return (c.keyframe_move > 0 and moved >= c.keyframe_move) or (c.keyframe_turn_deg > 0 and turned >= c.keyframe_turn_deg)
+
     # -- protocol --------------------------------------------------------------------------
 
     def act(self, observation, info: dict | None = None) -> np.ndarray:
@@ -190,8 +216,9 @@ class MapNavigator:
             names = dict(enumerate(info["object_names"])) if (self.mapper.privileged and info and "object_names" in info) else None
             self.mapper.reset(names)
             self._started = True
-        if self._phase == "look" or self._steps % max(1, self.config.integrate_every) == 0:
+        if self._fuse_now(pose):
             self.mapper.integrate(observation, segmentation=(info or {}).get("segmentation") if self.privileged else None)
+            self._last_fused = pose.copy()
         self._steps += 1
         if self._last_yaw is not None:
             self._turned += abs(math.remainder(pose[2] - self._last_yaw, 2 * math.pi))

@@ -34,7 +34,9 @@ __all__ = ["PusherConfig", "MapPusher", "parse_push_instruction", "push_action",
 
 _LOG = logging.getLogger(__name__)
 
-_TARGET = re.compile(r"(?:the\s+)?(?P<name>.+?)\s+to\s+the\s+(?P<side>left|right)(?:\s+side)?(?:\s+of\s+the\s+(?:yellow\s+)?line)?$")
+_TARGETS = re.compile(
+    r"\s*(?:the\s+)?(?P<name>.+?)\s+to\s+the\s+(?P<side>left|right)(?:\s+side)?(?:\s+of\s+the\s+(?:yellow\s+)?line)?(?:\s+and\s+|$)"
+)
 
 
 def parse_push_instruction(text: str) -> list[tuple[str, str]]:
@@ -42,13 +44,14 @@ def parse_push_instruction(text: str) -> list[tuple[str, str]]:
     -> ``[("red mug", "right"), ("blue can", "left")]``. ``ValueError`` when nothing parses."""
     if not isinstance(text, str) or not text.strip():
         raise ValueError(f"instruction: expected text such as 'push the red mug to the right of the line', got {text!r}")
-    body = re.sub(r"^\s*push\s+", "", text.strip().lower()).rstrip(".")
-    out = []
-    for part in re.split(r"\s+and\s+(?=the\s|\w+\s+\w+\s+to\s+the)", body):
-        m = _TARGET.match(part.strip())
+    body = re.sub(r"^\s*push\s+", "", text.strip().lower()).rstrip(".").strip()
+    out, pos = [], 0
+    while pos < len(body):  # targets end at "to the left/right [of the line]"; "and" inside a name stays
+        m = _TARGETS.match(body, pos)
         if m is None:
-            raise ValueError(f"instruction: cannot read {part!r} as '<object> to the left/right of the line' in {text!r}")
+            raise ValueError(f"instruction: cannot read {body[pos:]!r} as '<object> to the left/right of the line' in {text!r}")
         out.append((m["name"].strip(), m["side"]))
+        pos = m.end()
     return out
 
 

@@ -28,6 +28,7 @@ __all__ = [
     "AgentError",
     "PlannerError",
     "HarnessError",
+    "ReplayFormatError",
 ]
 
 
@@ -109,3 +110,8 @@ class PlannerError(ConceptFusionError, ValueError):
 
 class HarnessError(ConceptFusionError, ValueError):
     """Bad settings or files of an evaluation run (:mod:`harness`)."""
+
+
+class ReplayFormatError(HarnessError):
+    """An episode recording (:mod:`harness.replay`) that cannot be read: truncated, corrupt,
+    another format or a newer version."""

@@ -68,6 +68,30 @@ def _cmd_demo(args: argparse.Namespace) -> int:
     return 1 if wrong else 0
 
 
+def _cmd_view(args: argparse.Namespace) -> int:
+    from conceptfusion.errors import ConceptFusionError
+    from harness.viewer.server import ViewerServer
+
+    try:
+        server = ViewerServer(args.map, encoder=args.encoder, host=args.host, port=args.port,
+                              max_points=args.max_points)
+    except (ConceptFusionError, ValueError, OSError) as exc:
+        print(f"cfharness view: {exc}", file=sys.stderr)
+        return 2
+    print(f"Serving {args.map} at {server.url} (encoder {args.encoder}); Ctrl-C stops.", flush=True)
+    if args.open:
+        import webbrowser
+
+        webbrowser.open(server.url)
+    try:
+        server.serve_forever()
+    except KeyboardInterrupt:
+        pass
+    finally:
+        server.httpd.server_close()
+    return 0
+
+
 def build_parser() -> argparse.ArgumentParser:
     from conceptfusion.perception.registry import DEFAULT_ENCODER
 
@@ -95,6 +119,24 @@ def build_parser() -> argparse.ArgumentParser:
     demo.add_argument("--proposer", default="rgbd", choices=("rgbd", "gt"),
                       help="mask proposer on the tabletop (default: rgbd; gt reads the simulator's segmentation)")
     demo.set_defaults(func=_cmd_demo)
+    view = sub.add_parser(
+        "view", help="open a map file in the browser: point cloud, text, click and image queries",
+        description="Serve a map file (.npz, e.g. runs/demo/map.npz or RUN/replays/*.map.npz) on this machine's "
+        "loopback address and draw it in the browser (WebGL): RGB or query heatmap, a text box, click on a point for "
+        "the paper's click query, image upload, the found regions' boxes and medians, or 'not found' with the reason.",
+        epilog="examples:\n  cfharness view runs/demo/map.npz\n  cfharness view runs/demo/map.npz --port 8765 --open\n"
+        "  cfharness demo --encoder color && cfharness view runs/demo/map.npz --encoder color",
+        formatter_class=argparse.RawDescriptionHelpFormatter,
+    )
+    view.add_argument("map", help="map file written by save_map (.npz)")
+    view.add_argument("--encoder", default=DEFAULT_ENCODER,
+                      help=f"the encoder the map was built with (default: {DEFAULT_ENCODER}); it answers the queries")
+    view.add_argument("--port", type=int, default=0, help="TCP port (default: 0, a free one)")
+    view.add_argument("--host", default="127.0.0.1", help="loopback address to bind: 127.0.0.1 (default), localhost or ::1")
+    view.add_argument("--max-points", type=int, default=2_000_000,
+                      help="points sent to the browser at most; larger maps are thinned (default: 2000000)")
+    view.add_argument("--open", action="store_true", help="open the page in the default web browser")
+    view.set_defaults(func=_cmd_view)
     from harness.commands import add_eval_commands
 
     add_eval_commands(sub)

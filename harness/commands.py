@@ -1,4 +1,4 @@
-"""The ``cfharness`` subcommands that evaluate: ``run``, ``compare``, ``report``, ``list``.
+"""The ``cfharness`` subcommands that evaluate: ``run``, ``compare``, ``report``, ``replay``, ``list``.
 
 (The parser lives in :mod:`harness.cli`; these functions take its parsed arguments.)
 """
@@ -59,15 +59,17 @@ def cmd_run(args: argparse.Namespace) -> int:
     try:
         config = RunConfig(
             suites=suites, agents=tuple(args.agent) if args.agent else None, encoder=args.encoder,
-            agent_kwargs=_parse_kv(args.agent_option), limit=args.limit, seed=args.seed, backend=args.backend,
+            agent_kwargs=_parse_kv(args.agent_option), limit=args.limit, seed=args.seed, seeds=args.seeds, backend=args.backend,
             workers=args.workers, address=args.address, timeout_s=args.timeout, plugins=tuple(args.plugin or ()),
+            record=args.record,
         )
+        floor_as = _parse_floor_as(args.floor_as, config)
         plan = plan_run(config, args.out, resume=args.resume)
     except (ValueError, TypeError, FileExistsError, FileNotFoundError, RayUnavailableError) as exc:
         print(f"cfharness run: {exc}", file=sys.stderr)
         return 2
     t0 = time.monotonic()
-    print(f"run {args.out}: suites {', '.join(suites)}; encoder {config.encoder}; backend {config.backend}", file=sys.stderr)
+    print(f"run {args.out}: suites {', '.join(suites)}; encoder {config.encoder or 'each suite default'}; backend {config.backend}", file=sys.stderr)
     try:
         records = plan.execute()
     except (ValueError, FileExistsError, FileNotFoundError, RayUnavailableError) as exc:
@@ -76,27 +78,92 @@ def cmd_run(args: argparse.Namespace) -> int:
     _print_summary(records)
     print(f"\n{len(records)} records in {Path(args.out) / 'results.jsonl'} ({time.monotonic() - t0:.0f} s)")
     if not args.no_report:
-        from harness.report.markdown import write_report
+        from harness.replay.video import render_missing_videos
+        from harness.report.html import write_reports
 
-        path = write_report([args.out], Path(args.out) / "report")
-        print(f"report: {path}")
-    return _check_floors(records, suites)
+        render_missing_videos(args.out)
+        path, html_path = write_reports([args.out], Path(args.out) / "report")
+        print(f"report: {path}\nHTML report: {html_path}")
+    return _check_floors(records, suites, agents=config.agents, floor_as=floor_as, limited=config.limit is not None)
 
 
-def _check_floors(records: list[dict], suites: tuple[str, ...]) -> int:
-    """Non-zero when a regression suite's agent falls below its success floor."""
+def _parse_floor_as(items: list[str] | None, config) -> dict[str, str]:
+    """``--floor-as AGENT=BUILTIN`` -> {agent: built-in agent}; ``ValueError`` for a bad item."""
+    from agents.registry import AGENTS
+    from conceptfusion.names import unknown_name_error
+
+    out: dict[str, str] = {}
+    for item in items or []:
+        agent, sep, builtin = (x.strip() for x in item.partition("="))
+        if not sep or not agent or not builtin:
+            raise ValueError(f"--floor-as: expected AGENT=BUILTIN (e.g. mypkg.agents:MyPusher=map-pusher), got {item!r}")
+        if agent not in (config.agents or ()):
+            raise ValueError(f"--floor-as {item}: {agent!r} is not an --agent of this run "
+                             f"(agents: {', '.join(config.agents or ()) or 'the suites defaults'})")
+        if builtin not in AGENTS:
+            raise unknown_name_error("built-in agent", builtin, AGENTS)
+        out[agent] = builtin
+    return out
+
+
+def _check_floors(records: list[dict], suites: tuple[str, ...], *, agents: tuple[str, ...] | None = None,
+                  floor_as: dict[str, str] | None = None, limited: bool = False) -> int:
+    """1 when an agent of a regression suite breaks its calibrated bound
+    (:mod:`harness.runner.floors`), with one ``REGRESSION`` line on stderr per problem; else 0.
+
+    Checked per suite of ``suites`` that has floors or ceilings: every agent with a bound when
+    ``agents`` (the run's ``--agent`` list) is None, else the named ones that have a bound or
+    borrow one through ``floor_as`` (``{agent: built-in agent whose bound it is held to}``).
+    A problem is: a success rate below the agent's floor or above its ceiling; an episode that
+    crashed (status ``failed``: the agent or environment raised); an agent to check with no records; fewer episodes than its bound is sized for (unless the run was ``limited``
+    with ``--limit``, which only prints a note); a regression suite with no calibrated bounds.
+    Failed and timed-out episodes count as unsuccessful.
+    """
+    from harness.report.stats import metric_value
     from harness.runner.suites import get_suite
 
-    bad = []
+    floor_as = dict(floor_as or {})
+    bad, notes = [], []
     for name in suites:
         suite = get_suite(name)
-        for agent, floor in suite.floors.items():
-            rs = [r for r in records if r["suite"] == name and r["agent"] == agent]
-            if not rs:
+        bounds = {**{a: ("floor", v) for a, v in suite.floors.items()}, **{a: ("ceiling", v) for a, v in suite.ceilings.items()}}
+        if suite.calibration_file is not None and not bounds:
+            bad.append(f"{name}: no calibrated floors (run python -m harness.runner.floors --calibrate)")
+            continue
+        if agents is None:
+            to_check = list(bounds)
+        else:
+            to_check = [a for a in agents if a in bounds or a in floor_as]
+        for agent in to_check:
+            ref = floor_as.get(agent, agent)
+            if ref not in bounds:
+                bad.append(f"{name}: {agent} is held to the bound of {ref}, which has none in this suite "
+                           f"(agents with bounds: {', '.join(bounds)})")
                 continue
-            rate = sum(bool(r["metrics"].get("success")) for r in rs) / len(rs)
-            if rate < floor:
-                bad.append(f"{name}: {agent} succeeded on {rate:.0%} of {len(rs)} episodes, below its floor {floor:.0%}")
+            kind, value = bounds[ref]
+            held = f"its {kind} {value:.0%}" + (f" (that of {ref})" if ref != agent else "")
+            pinned = suite.agent_limits.get(ref, suite.limit)
+            rs = {(r.get("episode_id"), r.get("seed")): r for r in records if r["suite"] == name and r["agent"] == agent}
+            if not rs:
+                bad.append(f"{name}: {agent} has no records; {held} needs its {pinned or 'all'} pinned episodes run")
+                continue
+            episodes = len({e for e, _ in rs})
+            if pinned is not None and episodes < pinned:
+                line = f"{name}: {agent} ran {episodes} of the {pinned} pinned episodes {held} is sized for"
+                (notes if limited else bad).append(line + (" (--limit)" if limited else ""))
+            k = sum(bool(metric_value(r, "success")) for r in rs.values())
+            n = len(rs)
+            crashed = sorted(e for (e, _), r in rs.items() if r.get("status") == "failed")
+            if crashed:
+                bad.append(f"{name}: {agent} crashed on {len(crashed)} of {n} episodes ({', '.join(map(str, crashed[:3]))}"
+                           f"{', ...' if len(crashed) > 3 else ''}); see their records' error")
+            if kind == "floor" and k < value * n - 1e-9:
+                bad.append(f"{name}: {agent} succeeded on {k} of {n} episodes ({k / n:.0%}), below {held}")
+            elif kind == "ceiling" and k > value * n + 1e-9:
+                bad.append(f"{name}: {agent} succeeded on {k} of {n} episodes ({k / n:.0%}), above {held}: "
+                           "a random agent should not succeed that often (a broken success function?)")
+    for line in notes:
+        print(f"note: {line}", file=sys.stderr)
     for line in bad:
         print(f"REGRESSION {line}", file=sys.stderr)
     return 1 if bad else 0
@@ -117,14 +184,34 @@ def cmd_compare(args: argparse.Namespace) -> int:
 
 
 def cmd_report(args: argparse.Namespace) -> int:
-    from harness.report.markdown import write_report
+    from harness.replay.video import render_missing_videos
+    from harness.report.html import write_reports
 
     try:  # a missing folder, an empty or corrupt results file: one line and exit 2, no traceback
-        path = write_report(list(args.runs), Path(args.out) if args.out else Path(args.runs[0]) / "report")
+        for run in args.runs:  # videos of the recordings that have none yet, beside them
+            render_missing_videos(run)
+        path, html_path = write_reports(list(args.runs), Path(args.out) if args.out else Path(args.runs[0]) / "report")
     except (ValueError, OSError) as exc:
         print(f"cfharness report: {exc}", file=sys.stderr)
         return 2
-    print(f"report: {path}")
+    print(f"report: {path}\nHTML report: {html_path}")
+    return 0
+
+
+def cmd_replay(args: argparse.Namespace) -> int:
+    """``cfharness replay RUN EPISODE``: find the recording (:func:`~harness.replay.find.find_recording`)
+    and render it (:func:`~harness.replay.video.render_video`); a bad argument or file is one line
+    on stderr and exit status 2."""
+    from harness.replay.find import find_recording
+    from harness.replay.video import render_video
+
+    try:
+        path = find_recording(args.run, args.episode, suite=args.suite, agent=args.agent, seed=args.seed)
+        video = render_video(path, args.out, fps=args.fps)
+    except (ValueError, OSError, ImportError) as exc:
+        print(f"cfharness replay: {exc}", file=sys.stderr)
+        return 2
+    print(f"replay: {video}")
     return 0
 
 
@@ -149,7 +236,7 @@ def cmd_list(args: argparse.Namespace) -> int:
 
 
 def add_eval_commands(sub) -> None:
-    """Add ``run``, ``compare``, ``report`` and ``list`` to the ``cfharness`` subparsers."""
+    """Add ``run``, ``compare``, ``report``, ``replay`` and ``list`` to the ``cfharness`` subparsers."""
     from harness.runner.backends import BACKENDS
     from harness.runner.suites import DEFAULT_SUITES, SUITES
 
@@ -171,10 +258,12 @@ def add_eval_commands(sub) -> None:
     run.add_argument("--agent-option", action="append", metavar="KEY=VALUE", help="option for agents that accept it, repeatable")
     run.add_argument("--import", dest="plugin", action="append", metavar="MODULE",
                      help="import MODULE first (repeatable): a module that registers agents by name with agents.registry.register_agent")
-    run.add_argument("--encoder", default="embedded", help="perception for map agents and map suites: embedded (default), oracle (privileged), hf:..., onnx:DIR")
+    run.add_argument("--encoder", default=None, help="perception for map agents and map suites: embedded, embedded-v2, oracle (privileged), hf:..., onnx:DIR (default: each suite's own, the shipped tower of its world: embedded for v1 suites, embedded-v2 for v2 suites)")
     # numbers arrive as text: RunConfig checks them, with the same messages for Python callers
     run.add_argument("--limit", metavar="N", help="first N >= 1 episodes / scenes per suite")
     run.add_argument("--seed", metavar="N", default=0, help="episode seed >= 0 (default 0)")
+    run.add_argument("--seeds", metavar="N", default=1, help="seeds per episode >= 1: each episode runs with seeds "
+                     "SEED, SEED+1, ..., SEED+N-1, and the report gives the between-seed spread (default 1)")
     run.add_argument("--backend", default="process", metavar="{" + ",".join(BACKENDS) + "}",
                      help="where episodes run (default: process pool; serial runs in this process, where an agent "
                      "calling os._exit or crashing in native code ends the run)")
@@ -186,6 +275,12 @@ def add_eval_commands(sub) -> None:
     run.add_argument("--out", default="runs/main", help="run folder (default: runs/main)")
     run.add_argument("--resume", action="store_true", help="finish an interrupted run in --out")
     run.add_argument("--no-report", action="store_true", help="skip writing the report")
+    run.add_argument("--floor-as", action="append", metavar="AGENT=BUILTIN",
+                     help="in the regression suites, hold --agent AGENT to the calibrated floor (or ceiling) of the "
+                     "built-in agent BUILTIN, repeatable (e.g. mypkg.agents:MyPusher=map-pusher)")
+    run.add_argument("--record", default="failures", metavar="{failures,all,none}",
+                     help="episode recordings in OUT/replays/ (camera frames, poses, actions, the map's answers; "
+                     "videos with the report): failures (default), all or none")
     run.set_defaults(func=cmd_run)
 
     cmp_ = sub.add_parser("compare", help="paired comparison of two agents on the same episodes")
@@ -196,10 +291,32 @@ def add_eval_commands(sub) -> None:
     cmp_.add_argument("--suite")
     cmp_.set_defaults(func=cmd_compare)
 
-    rep = sub.add_parser("report", help="write the Markdown report (tables, CIs, plots) for run folders")
+    rep = sub.add_parser("report", help="write the Markdown and HTML reports (tables, CIs, plots, episodes) for run folders",
+                         description="Write RUN/report/report.md with its PNG figures and report.html (one self-contained "
+                         "page: sortable tables, figures inline, one row per episode linking its replay video and map). "
+                         "Several run folders are compared side by side.")
     rep.add_argument("runs", nargs="+", help="run folders")
     rep.add_argument("--out", help="report folder (default: RUN/report)")
     rep.set_defaults(func=cmd_report)
+
+    rpl = sub.add_parser(
+        "replay", help="render an episode's recording to a video (camera beside a top-down view)",
+        description="Render the recording of one episode of a run (RUN/replays/, written by cfharness run --record) "
+        "to a video: the agent's camera beside a top-down view with the floor plan or table, the path so far, the "
+        "goal and what the map answered. MP4 through OpenCV, GIF when no MP4 writer is available.",
+        epilog="examples:\n  cfharness replay runs/main search-v1-0007\n"
+        "  cfharness replay runs/main search-v1-0007 --agent map-navigator --out nav.mp4\n"
+        "  cfharness replay runs/main runs/main/replays/search__map-navigator__search-v1-0007__s0.npz",
+        formatter_class=argparse.RawDescriptionHelpFormatter,
+    )
+    rpl.add_argument("run", help="run folder")
+    rpl.add_argument("episode", help="episode id, or the path of a recording (.npz)")
+    rpl.add_argument("--suite", help="the episode's suite, when several suites recorded it")
+    rpl.add_argument("--agent", help="the agent (name or label), when several agents recorded the episode")
+    rpl.add_argument("--seed", type=int, help="the episode seed, when several seeds recorded it")
+    rpl.add_argument("--out", help="video file, .mp4 or .gif (default: beside the recording)")
+    rpl.add_argument("--fps", type=float, help="frames per second (default: 4 for search, 1 for tabletop pushes)")
+    rpl.set_defaults(func=cmd_replay)
 
     lst = sub.add_parser("list", help="list suites, agents and encoders")
     lst.set_defaults(func=cmd_list)

@@ -1,8 +1,8 @@
 """Compiled inner loops of fusion (numba).
 
-Fusion touches every map point (projection) and every fused pixel (merging) once per
-frame; as fused single passes these run several times faster than the equivalent chains
-of numpy temporaries. Each kernel has a plain-numpy specification in its docstring and is
+Fusion touches every fused pixel (merging) once per frame, and queries every map point; as
+fused single passes these run several times faster than the equivalent chains of numpy
+temporaries (projective association has its own module, ``_association``). Each kernel has a plain-numpy specification in its docstring and is
 tested against the map's behaviour, not re-implemented elsewhere.
 """
 
@@ -11,106 +11,7 @@ from __future__ import annotations
 import numpy as np
 from numba import njit
 
-__all__ = ["associate", "merge_geometry", "merge_features", "mixture_scores"]
-
-
-@njit(cache=True, nogil=True)
-def associate(geo, n, world_to_cam, K, pixel_to_valid, verts, nrms, dist_th2, cos_th, h, w):
-    """Projective data association.
-
-    For each of the first ``n`` map points (rows of ``geo``: position 0:3, normal 3:6,
-    confidence 9), project into the frame; if it lands on a valid pixel ``j`` within
-    ``sqrt(dist_th2)`` of that pixel's vertex ``verts[j]`` with normals agreeing
-    (``dot >= cos_th``), it is a candidate for ``j``. Per pixel the candidate with the
-    highest confidence wins, ties to the nearest, then to the lowest point index.
-
-    A valid pixel with no candidate is *covered* when the nearest point projecting onto one
-    of its 8 neighbours passes the same distance and normal tests: the surface there is
-    already in the map at the map's density, so the pixel adds no new point.
-
-    Returns ``(points, pixels, covered)``: matched map point indices and valid-pixel
-    indices, (M,) int64 ordered by pixel, and (V,) bool over the valid pixels.
-    """
-    num_valid = verts.shape[0]
-    best_pt = np.full(num_valid, -1, np.int64)
-    best_conf = np.zeros(num_valid, np.float32)
-    best_d2 = np.zeros(num_valid, np.float32)
-    near_pt = np.full(h * w, -1, np.int64)  # nearest point projecting onto each pixel
-    near_z = np.full(h * w, np.inf, np.float32)
-    r00, r01, r02, t0 = world_to_cam[0, 0], world_to_cam[0, 1], world_to_cam[0, 2], world_to_cam[0, 3]
-    r10, r11, r12, t1 = world_to_cam[1, 0], world_to_cam[1, 1], world_to_cam[1, 2], world_to_cam[1, 3]
-    r20, r21, r22, t2 = world_to_cam[2, 0], world_to_cam[2, 1], world_to_cam[2, 2], world_to_cam[2, 3]
-    fx, s, cx, fy, cy = K[0, 0], K[0, 1], K[0, 2], K[1, 1], K[1, 2]
-    for k in range(n):
-        x, y, z = geo[k, 0], geo[k, 1], geo[k, 2]
-        zc = r20 * x + r21 * y + r22 * z + t2
-        if zc <= 0.0:
-            continue
-        xc = (r00 * x + r01 * y + r02 * z + t0) / zc
-        yc = (r10 * x + r11 * y + r12 * z + t1) / zc
-        u = np.rint(fx * xc + s * yc + cx)
-        v = np.rint(fy * yc + cy)
-        if u < 0 or u >= w or v < 0 or v >= h:
-            continue
-        q = int(v) * w + int(u)
-        if zc < near_z[q]:
-            near_z[q] = zc
-            near_pt[q] = k
-        j = pixel_to_valid[q]
-        if j < 0:
-            continue
-        if not _compatible(geo, k, verts, nrms, j, dist_th2, cos_th):
-            continue
-        dx = x - verts[j, 0]
-        dy = y - verts[j, 1]
-        dz = z - verts[j, 2]
-        d2 = dx * dx + dy * dy + dz * dz
-        c = geo[k, 9]
-        b = best_pt[j]
-        if b < 0 or c > best_conf[j] or (c == best_conf[j] and d2 < best_d2[j]):
-            best_pt[j] = k
-            best_conf[j] = c
-            best_d2[j] = d2
-    covered = np.zeros(num_valid, np.bool_)
-    m = 0
-    for q in range(h * w):
-        j = pixel_to_valid[q]
-        if j < 0:
-            continue
-        if best_pt[j] >= 0:
-            m += 1
-            continue
-        qv = q // w
-        qu = q - qv * w
-        for dv in range(-1, 2):
-            for du in range(-1, 2):
-                vv = qv + dv
-                uu = qu + du
-                if vv < 0 or vv >= h or uu < 0 or uu >= w:
-                    continue
-                k = near_pt[vv * w + uu]
-                if k >= 0 and _compatible(geo, k, verts, nrms, j, dist_th2, cos_th):
-                    covered[j] = True
-    pts = np.empty(m, np.int64)
-    pix = np.empty(m, np.int64)
-    i = 0
-    for j in range(num_valid):
-        if best_pt[j] >= 0:
-            pts[i] = best_pt[j]
-            pix[i] = j
-            i += 1
-    return pts, pix, covered
-
-
-@njit(cache=True, nogil=True, inline="always")
-def _compatible(geo, k, verts, nrms, j, dist_th2, cos_th):
-    """Map point ``k`` and frame vertex ``j`` are within the distance and angle thresholds."""
-    dx = geo[k, 0] - verts[j, 0]
-    dy = geo[k, 1] - verts[j, 1]
-    dz = geo[k, 2] - verts[j, 2]
-    if dx * dx + dy * dy + dz * dz >= dist_th2:
-        return False
-    return geo[k, 3] * nrms[j, 0] + geo[k, 4] * nrms[j, 1] + geo[k, 5] * nrms[j, 2] >= cos_th
+__all__ = ["merge_geometry", "merge_features", "mixture_scores", "frame_points", "lookup_tables"]
 
 
 @njit(cache=True, nogil=True)
@@ -137,15 +38,15 @@ def merge_geometry(geo, pts, pix, obs, alpha):
 
 
 @njit(cache=True, nogil=True, inline="always")
-def _tri(i, j, k):
-    """Index of (i, j) in the row-major upper triangle of a k x k matrix."""
+def _off(i, j):
+    """Index of the pair (i, j), i != j, in the packed strict upper triangle of a Gram matrix."""
     if i > j:
         i, j = j, i
-    return i * (2 * k - i + 1) // 2 + (j - i)
+    return j * (j - 1) // 2 + i
 
 
 @njit(cache=True, nogil=True)
-def merge_features(point_ids, point_w, point_gram, point_sq, rows, ids, alpha, lut_atom, lut_new, block, new_sq):
+def merge_features(point_ids, point_w, point_gram, point_sq, bank_sq, rows, ids, alpha, lut_atom, lut_new, block):
     """Fuse one feature observation into each point's mixture (see ``FeatureStore``).
 
     For point ``p = rows[i]`` observing bank entry ``b = ids[i]`` with confidence
@@ -156,7 +57,9 @@ def merge_features(point_ids, point_w, point_gram, point_sq, rows, ids, alpha, l
     * a free slot ``j``: store ``b`` there, fill the Gram row with ``dots``;
     * no free slot: credit ``e = b_j`` with ``j = argmax dots`` (the most similar entry).
 
-    Then ``|S|^2 += 2 a <S, e> + a^2 |e|^2`` and ``w_j += a``.
+    Then ``|S|^2 += 2 a <S, e> + a^2 |e|^2`` and ``w_j += a``. The Gram matrix's diagonal
+    is ``bank_sq`` (squared norms of the bank entries), so ``point_gram`` holds only the
+    off-diagonal pairs (see ``_off``).
     """
     k_slots = point_ids.shape[1]
     dots = np.zeros(k_slots, np.float64)
@@ -180,16 +83,15 @@ def merge_features(point_ids, point_w, point_gram, point_sq, rows, ids, alpha, l
             s_dot_e = 0.0
             for k in range(used):
                 s_dot_e += point_w[p, k] * dots[k]
-            e_sq = np.float64(new_sq[c])
+            e_sq = np.float64(bank_sq[b])
         elif used < k_slots:
             j = used
             point_ids[p, j] = b
             s_dot_e = 0.0
             for k in range(used):
                 s_dot_e += point_w[p, k] * dots[k]
-                point_gram[p, _tri(k, j, k_slots)] = dots[k]
-            point_gram[p, _tri(j, j, k_slots)] = new_sq[c]
-            e_sq = np.float64(new_sq[c])
+                point_gram[p, _off(k, j)] = dots[k]
+            e_sq = np.float64(bank_sq[b])
         else:
             j = 0
             for k in range(1, k_slots):
@@ -197,22 +99,24 @@ def merge_features(point_ids, point_w, point_gram, point_sq, rows, ids, alpha, l
                     j = k
             s_dot_e = 0.0
             for k in range(k_slots):
-                s_dot_e += point_w[p, k] * point_gram[p, _tri(k, j, k_slots)]
-            e_sq = np.float64(point_gram[p, _tri(j, j, k_slots)])
+                g = bank_sq[point_ids[p, j]] if k == j else point_gram[p, _off(k, j)]
+                s_dot_e += point_w[p, k] * g
+            e_sq = np.float64(bank_sq[point_ids[p, j]])
         sq = point_sq[p] + 2.0 * a * s_dot_e + a * a * e_sq
         point_sq[p] = sq if sq > 0.0 else 0.0
         point_w[p, j] += alpha[i]
 
 
 @njit(cache=True, nogil=True)
-def mixture_scores(point_ids, point_w, point_sq, bank_scores, n):
-    """Cosine score of each point's mixture: ``sum_k w_k bank_scores[id_k] / sqrt(|S|^2)``.
+def mixture_scores(point_ids, point_w, point_sq, bank_scores, start, stop, out):
+    """Cosine score of points ``start:stop``: ``sum_k w_k bank_scores[id_k] / sqrt(|S|^2)``.
 
-    Points without a feature (first id -1) get NaN. Returns (n,) float32.
+    The sum runs over a point's slots in order up to its first empty one (id -1), in
+    float64. Points without a feature (first id -1, or ``|S|^2 <= 0``) get NaN. Writes
+    ``out[start:stop]`` (float32); ``nogil``, so disjoint ranges can run on several threads.
     """
-    out = np.empty(n, np.float32)
     k_slots = point_ids.shape[1]
-    for p in range(n):
+    for p in range(start, stop):
         if point_ids[p, 0] < 0 or point_sq[p] <= 0.0:
             out[p] = np.nan
             continue
@@ -223,7 +127,6 @@ def mixture_scores(point_ids, point_w, point_sq, bank_scores, n):
                 break
             num += point_w[p, k] * bank_scores[idk]
         out[p] = num / np.sqrt(point_sq[p])
-    return out
 
 
 @njit(cache=True, nogil=True)

@@ -26,9 +26,11 @@ from functools import lru_cache
 import numpy as np
 
 from conceptfusion.map import _kernels
+from conceptfusion.map._association import associate
 from conceptfusion._checks import as_array, as_float_array
 from conceptfusion.cameras import check_intrinsics, check_pose, radial_confidence
 from conceptfusion.errors import DtypeError, ShapeError
+from conceptfusion.map.dense import palette_from_dense
 from conceptfusion.map.feature_store import FeatureStore
 from conceptfusion.perception.features import PixelFeatures
 
@@ -82,6 +84,7 @@ class IntegrationStats:
 
 
 _GEO_COLS = 10
+_LARGE_PALETTE = 4096  # distinct features in one frame beyond which integrate() warns about the bank
 _POS, _NRM, _RGB, _CONF = slice(0, 3), slice(3, 6), slice(6, 9), 9
 
 
@@ -206,11 +209,20 @@ class PointFusionMap:
             depth_hw: metric depth along the optical axis, float (metres).
             K_33: pinhole intrinsics.
             cam_to_world_44: OpenCV camera-to-world rigid pose.
-            feats_hwd: ``None``, dense (H, W, d) features (zero rows = no feature) or a
-                :class:`~conceptfusion.perception.features.PixelFeatures`.
+            feats_hwd: the frame's features (zero vectors = no feature), one of: ``None``;
+                a :class:`~conceptfusion.perception.features.PixelFeatures` (palette and
+                per-pixel index); a pair ``(labels_hw, table_pd)``, the same as a label
+                image (-1: no feature) and a table; or dense ``(H, W, d)`` features, grouped
+                exactly into a palette (:func:`~conceptfusion.map.dense.palette_from_dense`,
+                one pass over the array; the map is bit-identical to the one built from the
+                same palette with rows in first-appearance order). Dense features with no
+                repeats (per-pixel encoders) make the shared bank grow by every pixel's
+                vector; pass them through
+                :func:`~conceptfusion.map.quantize.quantize_features` for bounded memory.
 
         Shape:
-            (H, W, 3), (H, W), (3, 3), (4, 4), (H, W, d) or PixelFeatures of (H, W).
+            (H, W, 3), (H, W), (3, 3), (4, 4); features (H, W, d), PixelFeatures of (H, W)
+            or ((H, W) int, (P, d) float).
         """
         depth = np.asarray(depth_hw) if isinstance(depth_hw, (list, tuple)) else depth_hw
         if isinstance(depth, np.ndarray) and depth.dtype.kind in "iu":
@@ -253,9 +265,18 @@ class PointFusionMap:
             return None
         if isinstance(feats, np.ndarray):
             f = as_float_array("feats_hwd", feats, shape=(h, w, self.feature_dim))
-            feats = PixelFeatures.from_dense(f)
+            feats = palette_from_dense(f)
+        elif isinstance(feats, tuple) and len(feats) == 2:
+            labels, table = feats
+            feats = PixelFeatures(
+                as_float_array("feats_hwd table", table, shape=(None, self.feature_dim)),
+                as_array("feats_hwd labels", labels, shape=(h, w), kinds="iu"),
+            )
         elif not isinstance(feats, PixelFeatures):
-            raise DtypeError(f"feats_hwd: expected None, an (H, W, d) array or PixelFeatures, got {type(feats).__name__}")
+            raise DtypeError(
+                "feats_hwd: expected None, an (H, W, d) array, PixelFeatures or a (labels (H, W), table (P, d)) "
+                f"pair, got {type(feats).__name__}"
+            )
         if feats.shape != (h, w) or feats.dim != self.feature_dim:
             raise ShapeError(
                 f"feats_hwd: expected features of shape ({h}, {w}, {self.feature_dim}), "
@@ -264,23 +285,27 @@ class PointFusionMap:
         palette = feats.palette_pd
         if not np.all(np.isfinite(palette)):
             raise ValueError("feats_hwd: expected finite features, found NaN or inf")
+        if len(palette) > _LARGE_PALETTE:
+            logger.warning(
+                "a frame with %d distinct features adds up to %.0f MB to the map's feature bank; "
+                "quantise per-pixel features with conceptfusion.map.quantize.quantize_features",
+                len(palette), palette.shape[0] * palette.shape[1] * 4 / 1e6,
+            )
         nonzero = np.any(palette != 0, axis=1)
         ids = np.full(len(palette) + 1, -1, np.int32)  # last entry: index -1
         ids[: len(palette)][nonzero] = self._store.add_to_bank(palette[nonzero])
         return ids[feats.index_hw.ravel()]
 
     def _associate(self, obs, pix, K, T, h, w) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
-        """Projective data association (see ``_kernels.associate``)."""
+        """Projective data association (see ``_association``)."""
         if self._n == 0 or len(pix) == 0:
             return np.zeros(0, np.int64), np.zeros(0, np.int64), np.zeros(len(pix), bool)
-        pixel_to_valid = np.full(h * w, -1, np.int64)
-        pixel_to_valid[pix] = np.arange(len(pix))
-        return _kernels.associate(
+        return associate(
             self._geo,
             self._n,
             np.linalg.inv(T),
             K,
-            pixel_to_valid,
+            pix,
             np.ascontiguousarray(obs[:, 0:3]),
             np.ascontiguousarray(obs[:, 3:6]),
             np.float32(self.config.dist_th**2),

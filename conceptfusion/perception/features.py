@@ -29,6 +29,7 @@ from __future__ import annotations
 from dataclasses import dataclass
 
 import numpy as np
+from numba import njit
 
 from conceptfusion._checks import as_array, as_float_array
 from conceptfusion.errors import ShapeError
@@ -132,6 +133,24 @@ def _unique_rows(rows_nk: np.ndarray) -> tuple[np.ndarray, np.ndarray, np.ndarra
     keys = rows_nk.view(np.dtype((np.void, rows_nk.dtype.itemsize * rows_nk.shape[1]))).ravel()
     uniq, first, inverse = np.unique(keys, return_index=True, return_inverse=True)
     return uniq, first, inverse.ravel()
+
+
+@njit(cache=True, nogil=True)
+def _mask_set_codes(masks_rn):
+    """The set of masks covering each pixel as bits, mask ``i`` at bit ``63 - i`` (so codes
+    order as the rows of ``np.packbits(masks, axis=0).T`` compare bytewise).
+
+    Shape:
+        (R, N) bool, R <= 64 -> (N,) uint64.
+    """
+    r, n = masks_rn.shape
+    out = np.zeros(n, np.uint64)
+    for i in range(r):
+        bit = np.uint64(1) << np.uint64(63 - i)
+        for j in range(n):
+            if masks_rn[i, j]:
+                out[j] |= bit
+    return out
 
 
 def cosine(a_nd: np.ndarray, b_md: np.ndarray) -> np.ndarray:
@@ -248,14 +267,21 @@ def pixel_aligned_palette(
         return PixelFeatures(np.zeros((0, d), np.float32), index.reshape(h, w))
     f_p = region_features(g, local, tau=tau, uniqueness=uniqueness, mode=mode).astype(np.float64)
     # A pixel's feature depends only on the set of masks covering it: pack that set into
-    # bytes per pixel and find the distinct sets.
-    packed = np.packbits(masks.reshape(r, h * w), axis=0)  # (ceil(R/8), HW)
-    codes = np.ascontiguousarray(packed.T)
-    _, first, inverse = _unique_rows(codes)
-    members = np.unpackbits(codes[first], axis=1, count=r).astype(np.float64)  # (U, R)
+    # bits per pixel (mask 0 the most significant) and find the distinct sets, in ascending
+    # order of their packed bits.
+    if r <= 64:
+        codes = _mask_set_codes(masks.reshape(r, h * w))
+        uniq = np.unique(codes)
+        inverse = np.searchsorted(uniq, codes)
+        members = ((uniq[:, None] >> (63 - np.arange(r, dtype=np.uint64))) & np.uint64(1)).astype(np.float64)  # (U, R)
+    else:
+        codes = np.ascontiguousarray(np.packbits(masks.reshape(r, h * w), axis=0).T)  # (HW, ceil(R/8))
+        _, first, inverse = _unique_rows(codes)
+        members = np.unpackbits(codes[first], axis=1, count=r).astype(np.float64)  # (U, R)
+    inverse = inverse.ravel()
     covered = members.any(axis=1)
     palette = _unit(members[covered] @ f_p).astype(np.float32)
-    remap = np.full(len(first), -1, dtype=np.int32)
+    remap = np.full(len(members), -1, dtype=np.int32)
     remap[covered] = np.arange(int(covered.sum()), dtype=np.int32)
     index[:] = remap[inverse]
     return PixelFeatures(palette, index.reshape(h, w))

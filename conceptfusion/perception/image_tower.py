@@ -13,8 +13,10 @@ fixed mean/std.
 
 from __future__ import annotations
 
+import hashlib
 import json
 import warnings
+from collections import OrderedDict
 from dataclasses import asdict, dataclass
 from pathlib import Path
 from typing import Sequence
@@ -24,13 +26,19 @@ import numpy as np
 from conceptfusion.perception.encoders import check_images, check_texts, embed_in_batches
 from conceptfusion.errors import MissingDependencyError
 
-__all__ = ["TowerConfig", "SHIPPED_TOWER_DIR", "preprocess", "build_tower", "export_tower_onnx", "EmbeddedEncoder"]
+__all__ = ["TowerConfig", "SHIPPED_TOWER_DIR", "SHIPPED_TOWER_V2_DIR", "preprocess", "build_tower", "export_tower_onnx", "EmbeddedEncoder"]
 
 SHIPPED_TOWER_DIR = Path(__file__).resolve().parents[1] / "data" / "embedded_tower"
+"""The shipped v1 tower (``embedded``): trained on the 7 kinds x 10 colours of the v1 world."""
+SHIPPED_TOWER_V2_DIR = Path(__file__).resolve().parents[1] / "data" / "embedded_tower_v2"
+"""The shipped v2 tower (``embedded-v2``): trained on the train split of the object library
+(91 categories; see docs/model_card.md)."""
 """The trained tower that ships with the package (``make_encoder("embedded")``; see docs/model_card.md)."""
 
 _MEAN = np.array([0.485, 0.456, 0.406], np.float32)
 _STD = np.array([0.229, 0.224, 0.225], np.float32)
+_NORMALISED = (np.arange(256, dtype=np.uint8)[:, None].astype(np.float32) / 255.0 - _MEAN) / _STD
+"""Normalised value of every uint8 level per channel, (256, 3) float32."""
 
 
 @dataclass(frozen=True)
@@ -59,18 +67,24 @@ def preprocess(images: Sequence[np.ndarray], input_size: int) -> np.ndarray:
     import cv2
 
     imgs = check_images(images)
-    out = np.empty((len(imgs), 3, input_size, input_size), np.float32)
+    small = np.empty((len(imgs), input_size, input_size, 3), np.uint8)
     for i, img in enumerate(imgs):
         h, w = img.shape[:2]
         side = max(h, w)
-        fill = img.reshape(-1, 3).mean(axis=0)
-        square = np.empty((side, side, 3), np.uint8)
-        square[:] = fill.astype(np.uint8)
-        top, left = (side - h) // 2, (side - w) // 2
-        square[top : top + h, left : left + w] = img
+        if h == w:
+            square = img
+        else:
+            # The mean colour: an integer sum (exact, as the float64 sum of uint8 values is) over the count.
+            fill = img.sum(axis=(0, 1), dtype=np.int64) / (h * w)
+            square = np.empty((side, side, 3), np.uint8)
+            square[:] = fill.astype(np.uint8)
+            top, left = (side - h) // 2, (side - w) // 2
+            square[top : top + h, left : left + w] = img
         interp = cv2.INTER_AREA if side > input_size else cv2.INTER_LINEAR
-        small = cv2.resize(square, (input_size, input_size), interpolation=interp)
-        out[i] = ((small.astype(np.float32) / 255.0 - _MEAN) / _STD).transpose(2, 0, 1)
+        small[i] = cv2.resize(square, (input_size, input_size), interpolation=interp)
+    out = np.empty((len(imgs), 3, input_size, input_size), np.float32)
+    for c in range(3):  # a table lookup per channel: the same float32 values as computing them per pixel
+        out[:, c] = _NORMALISED[:, c][small[..., c]]
     return out
 
 
@@ -160,16 +174,28 @@ def export_tower_onnx(model, config: TowerConfig, out_dir: str | Path, *, metada
 class EmbeddedEncoder:
     """The default offline encoder: the embedded image tower (onnxruntime) + a text tower.
 
+    Images already embedded are remembered (an exact cache keyed by their pixels and size): an
+    unchanged crop in the next frame, or the same crop twice in one call, is not run again. The
+    tower's output for an image does not depend on the other images of its batch nor on the
+    thread count, so the cache never changes a result.
+
     Args:
         tower_dir: folder with ``tower.onnx`` and ``tower.json``.
         text_encoder: the frozen text tower the image tower was aligned to (anything with
             ``encode_text`` and ``dim``).
         batch_size: crops per onnxruntime call.
+        threads: onnxruntime intra-op threads (they sleep rather than spin between operators,
+            so that a busy machine does not lose cores to waiting).
+        cache_size: images whose embedding is remembered (least recently used go first; 0: none).
     """
 
-    def __init__(self, tower_dir: str | Path, text_encoder, *, batch_size: int = 64) -> None:
+    def __init__(self, tower_dir: str | Path, text_encoder, *, batch_size: int = 64, threads: int = 2,
+                 cache_size: int = 4096) -> None:
         import onnxruntime as ort
 
+        for name, value, low in (("batch_size", batch_size, 1), ("threads", threads, 1), ("cache_size", cache_size, 0)):
+            if isinstance(value, bool) or not isinstance(value, int) or value < low:
+                raise ValueError(f"{name}: expected an integer >= {low}, got {value!r}")
         d = Path(tower_dir)
         onnx_path, info_path = d / "tower.onnx", d / "tower.json"
         for p in (onnx_path, info_path):
@@ -182,7 +208,8 @@ class EmbeddedEncoder:
             raise ValueError(f"{info_path}: expected the tower's JSON config, could not read it: {exc}") from exc
         try:
             opts = ort.SessionOptions()
-            opts.intra_op_num_threads = 2
+            opts.intra_op_num_threads = threads
+            opts.add_session_config_entry("session.intra_op.allow_spinning", "0")
             self._session = ort.InferenceSession(str(onnx_path), opts, providers=["CPUExecutionProvider"])
         except Exception as exc:  # onnxruntime raises its own exception types
             raise ValueError(f"{onnx_path}: not a loadable ONNX graph: {exc}") from exc
@@ -194,6 +221,8 @@ class EmbeddedEncoder:
             )
         self._text = text_encoder
         self._batch = int(batch_size)
+        self._cache: OrderedDict[tuple, np.ndarray] = OrderedDict()
+        self._cache_size = int(cache_size)
         self.info = info
 
     @property
@@ -201,8 +230,40 @@ class EmbeddedEncoder:
         return self.config.embed_dim
 
     def encode_image(self, images: Sequence[np.ndarray]) -> np.ndarray:
-        x = preprocess(images, self.config.input_size)
+        """Unit embeddings of RGB images; each distinct image not in the cache is run once.
+
+        Shape:
+            n images (h_i, w_i, 3) uint8 -> (n, d) float32.
+        """
+        imgs = check_images(images)
+        if not self._cache_size:
+            return self._run(imgs)
+        keys = [_image_key(img) for img in imgs]
+        todo: dict[tuple, int] = {}
+        for key in keys:
+            if key not in self._cache and key not in todo:
+                todo[key] = len(todo)
+        fresh = self._run([imgs[keys.index(key)] for key in todo]) if todo else None
+        out = np.empty((len(imgs), self.dim), np.float32)
+        for i, key in enumerate(keys):
+            out[i] = fresh[todo[key]] if key in todo else self._cache[key]
+        for key in keys:  # most recently used last
+            if key in todo:
+                self._cache[key] = fresh[todo[key]].copy()
+            else:
+                self._cache.move_to_end(key)
+        while len(self._cache) > self._cache_size:
+            self._cache.popitem(last=False)
+        return out
+
+    def _run(self, imgs: list[np.ndarray]) -> np.ndarray:
+        x = preprocess(imgs, self.config.input_size)
         return embed_in_batches(x, self._batch, self.dim, lambda batch: self._session.run(None, {"images": batch})[0])
 
     def encode_text(self, texts: Sequence[str]) -> np.ndarray:
         return np.asarray(self._text.encode_text(check_texts(texts)), np.float32)
+
+
+def _image_key(img: np.ndarray) -> tuple:
+    """Cache key of one image: its size and a 160-bit digest of its pixels."""
+    return img.shape, hashlib.blake2b(np.ascontiguousarray(img).data, digest_size=20).digest()

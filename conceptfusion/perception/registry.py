@@ -7,7 +7,10 @@ A spec is ``NAME`` or ``NAME:ARGUMENT``:
 - ``hf:HUB_ID`` or ``hf:/local/dir``: Hugging Face CLIP (``Encoder``; :mod:`conceptfusion.perception.clip_hf`).
 - ``onnx:DIR``: CLIP exported to ONNX (``Encoder``; :mod:`conceptfusion.perception.clip_onnx`).
 - ``embedded`` or ``embedded:DIR``: the embedded image tower + MiniLM text tower (``Encoder``);
-  without an argument, the weights shipped with the package (:data:`DEFAULT_ENCODER`).
+  without an argument, the v1 weights shipped with the package (:data:`DEFAULT_ENCODER`), trained
+  on the v1 world's 7 kinds x 10 colours.
+- ``embedded-v2``: the same with the shipped v2 weights, trained on the object library's train
+  split (the default perception of the v2 suites).
 - ``audio-onnx:DIR``: an audio-language encoder in ONNX (``AudioEncoder``; :mod:`conceptfusion.perception.audio`).
 
 ``embedded`` is registered only where :mod:`conceptfusion.perception.image_tower` exists. Oracle
@@ -79,6 +82,15 @@ def _embedded(arg: str | None):
     return EmbeddedEncoder(tower_dir, MiniLMTextEncoder())
 
 
+def _embedded_v2(arg: str | None):
+    """Embedded image tower trained on the object library (shipped v2 weights): embedded-v2."""
+    from conceptfusion.perception.image_tower import SHIPPED_TOWER_V2_DIR, EmbeddedEncoder
+    from conceptfusion.perception.text_tower import MiniLMTextEncoder
+
+    _no_arg("embedded-v2", arg)
+    return EmbeddedEncoder(SHIPPED_TOWER_V2_DIR, MiniLMTextEncoder())
+
+
 def _audio_onnx(arg: str | None):
     """Audio-language encoder exported to ONNX: audio-onnx:DIR."""
     from conceptfusion.perception.audio import OnnxAudioEncoder
@@ -97,6 +109,7 @@ ENCODERS: dict[str, Callable[[str | None], object]] = {
 
 if importlib.util.find_spec("conceptfusion.perception.image_tower") is not None:
     ENCODERS["embedded"] = _embedded
+    ENCODERS["embedded-v2"] = _embedded_v2
 
 
 def parse_encoder_spec(spec: str) -> tuple[str, str | None]:

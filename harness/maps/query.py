@@ -32,7 +32,7 @@ from agents.builtin import make_mapper
 from harness.maps.scan import SceneScan, fuse_frames, load_shipped_scene, point_labels, scan_tabletop, shipped_scene_ids
 from sim_envs.mujoco.scan import render_views
 
-__all__ = ["run_query_scene", "locate_vector", "iou", "MODALITIES", "IOU_LEVELS"]
+__all__ = ["run_query_scene", "locate_vector", "iou", "select_points", "MODALITIES", "IOU_LEVELS"]
 
 MODALITIES = ("text", "image", "click")
 IOU_LEVELS = (0.15, 0.25, 0.5)
@@ -64,7 +64,13 @@ def locate_vector(mapper, query_d: np.ndarray, *, relative_threshold: float = 0.
     )
 
 
-def _selections(res, n: int, rel_th: float) -> tuple[np.ndarray, np.ndarray]:
+def select_points(res, n: int, rel_th: float) -> tuple[np.ndarray, np.ndarray]:
+    """The two point selections a query is scored by: ``region`` (the best region of a found
+    answer, else nothing) and ``thresh`` (every point whose relative score reaches ``rel_th``).
+
+    Shape:
+        ``res`` over a map of ``n`` points -> (n,) bool, (n,) bool.
+    """
     region = np.zeros(n, bool)
     if res.found:
         region[res.regions[0].indices_n] = True
@@ -171,7 +177,7 @@ def run_query_scene(
                 continue
             else:
                 res = locate_vector(mapper, vectors[m], relative_threshold=_REL[m])
-            region, thresh = _selections(res, len(pts), _REL[m])
+            region, thresh = select_points(res, len(pts), _REL[m])
             v, vt = iou(region, truth), iou(thresh, truth)
             ious[m].append(v)
             ious_t[m].append(vt)

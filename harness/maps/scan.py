@@ -115,14 +115,16 @@ def scan_tabletop(scene_id: str, suite: str, *, frames: int, width: int, height:
 
 
 def fuse_frames(mapper, scan: SceneScan, frames: list[RGBDFrame] | None = None):
-    """Reset ``mapper`` (with the scan's label names, which only oracle perception reads) and
-    fuse ``frames`` (default: the whole scan); returns the mapper.
+    """Reset ``mapper`` and fuse ``frames`` (default: the whole scan); returns the mapper.
 
+    The scan's label names and label images (ground truth) reach the mapper only when its
+    perception is privileged (``mapper.privileged``: the oracle, ground-truth masks).
     Build the mapper with :func:`agents.builtin.make_mapper`, as the agents do; its featurizer
     loads each encoder once per process."""
-    mapper.reset(scan.label_names)
+    privileged = bool(mapper.privileged)
+    mapper.reset(scan.label_names if privileged else None)
     for f in scan.frames if frames is None else frames:
-        mapper.integrate(f.observation(), segmentation=f.segmentation)
+        mapper.integrate(f.observation(), segmentation=f.segmentation if privileged else None)
     return mapper
 
 

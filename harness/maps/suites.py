@@ -1,17 +1,18 @@
-"""The map suites: ``query``, ``ablation`` and ``spatial``, scored against simulator ground truth
-(see :mod:`harness.maps.query`, :mod:`harness.maps.ablation`, :mod:`harness.maps.spatial` for
-what each measures and how).
+"""The map suites: ``query``, ``query-open``, ``ablation`` and ``spatial``, scored against
+simulator ground truth (see :mod:`harness.maps.query`, :mod:`harness.maps.query_open`,
+:mod:`harness.maps.ablation`, :mod:`harness.maps.spatial` for what each measures and how).
 
 A map suite is a :class:`MapSuite`: the ``task`` its records carry, the run options it reads,
 the :class:`MapCase` s it scores (``cases``) and how it scores one (``score``). One case = one
-record: ``query`` per (scene, encoder) with ``agent="conceptfusion"``; ``ablation`` per (scene,
+record: ``query`` per (scene, encoder) with ``agent="conceptfusion"``, ``query-open`` likewise over the v2 tabletops; ``ablation`` per (scene,
 variant) with ``agent=<variant>``; ``spatial`` per (scene, method) with ``agent="map-3d"`` or
 ``"frame-2.5d"``. Cases are deterministic and independent: each rebuilds its scene, scan and
 map. Turning cases into jobs and records is the runner's part (:mod:`harness.runner.map_jobs`).
 
 Options taken from the run's ``agent_kwargs`` (and then part of the job's key):
-``frames``, ``width``, ``height`` (scan size) and, for ``ablation``, ``proposer``
-(``"rgbd"`` by default; ``"gt"`` for ground-truth masks).
+``frames``, ``width``, ``height`` (scan size); for ``ablation``, ``proposer``
+(``"rgbd"`` by default; ``"gt"`` for ground-truth masks); for ``spatial``, ``parser`` (the
+spatial-question parser backend, ``"semantic"`` by default).
 """
 
 from __future__ import annotations
@@ -24,8 +25,9 @@ from conceptfusion.names import lookup
 from conceptfusion.perception.featurizer import ORACLE, make_featurizer
 from harness.maps.ablation import VARIANTS, run_ablation_scene
 from harness.maps.query import run_query_scene
+from harness.maps.query_open import open_scene_ids, run_open_query_scene
 from harness.maps.scan import shipped_scene_ids
-from harness.maps.spatial import METHODS, run_spatial_scene
+from harness.maps.spatial import DEFAULT_PARSER, METHODS, run_spatial_scene
 
 __all__ = ["MapCase", "MapSuite", "MAP_SUITES", "get_map_suite", "scene_ids", "DEFAULT_SCENES", "ablation_encoder",
            "heatmap_file"]
@@ -98,6 +100,10 @@ def _query_cases(encoder: str, limit: int | None) -> list[MapCase]:
     return [MapCase("conceptfusion", encoder, s) for s in scene_ids("tabletop", limit)]
 
 
+def _open_cases(encoder: str, limit: int | None) -> list[MapCase]:
+    return [MapCase("conceptfusion", encoder, s) for s in open_scene_ids(limit)]
+
+
 def _ablation_cases(encoder: str, limit: int | None) -> list[MapCase]:
     enc, note = ablation_encoder(encoder)
     return [MapCase(v, enc, s, note) for s in scene_ids("tabletop", limit) for v in VARIANTS]
@@ -125,20 +131,26 @@ def _score_ablation(case: MapCase, options: dict, seed: int, out_dir: str | None
     return metrics, extras, timings
 
 
+def _score_open(case: MapCase, options: dict, seed: int, out_dir: str | None) -> tuple[dict, dict, dict]:
+    return run_open_query_scene(case.scene_id, case.encoder, frames=int(options.get("frames", 12)), seed=seed, **_size(options))
+
+
 _SPATIAL_METHOD = {agent: method for method, agent in METHODS.items()}
 
 
 def _score_spatial(case: MapCase, options: dict, seed: int, out_dir: str | None) -> tuple[dict, dict, dict]:
     frames = int(options["frames"]) if "frames" in options else None
-    return run_spatial_scene(case.scene_id, _SPATIAL_METHOD[case.agent], case.encoder, frames=frames, seed=seed, **_size(options))
+    return run_spatial_scene(case.scene_id, _SPATIAL_METHOD[case.agent], case.encoder, frames=frames, seed=seed,
+                             parser=str(options.get("parser", DEFAULT_PARSER)), **_size(options))
 
 
 MAP_SUITES: dict[str, MapSuite] = {
     s.name: s
     for s in (
         MapSuite("query", "map_query", ("frames", "width", "height"), _query_cases, _score_query),
+        MapSuite("query-open", "map_query_open", ("frames", "width", "height"), _open_cases, _score_open),
         MapSuite("ablation", "map_ablation", ("frames", "width", "height", "proposer"), _ablation_cases, _score_ablation),
-        MapSuite("spatial", "spatial_qa", ("frames", "width", "height"), _spatial_cases, _score_spatial),
+        MapSuite("spatial", "spatial_qa", ("frames", "width", "height", "parser"), _spatial_cases, _score_spatial),
     )
 }
 """Every map suite by name."""

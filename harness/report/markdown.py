@@ -1,16 +1,24 @@
 """A Markdown report of one or more evaluation runs, with its PNG figures.
 
 :func:`write_report` reads run folders (their ``results.jsonl``) or takes records directly and
-writes ``report.md`` plus the figures it links into one folder, every file atomically:
+writes ``report.md`` plus the figures it links into one folder, every file atomically. The report
+is built once as data (:func:`build_report`, blocks of :mod:`harness.report.document`) and
+rendered to Markdown here and to a self-contained HTML page by :mod:`harness.report.html`:
 
 - a run summary (episodes, statuses, suites, agents, encoders, total wall time);
 - per suite, a table of every (agent, encoder) with success and SPL and their 95% intervals,
   the other metrics present and the wall time per episode, and a bar chart of success;
 - per suite, paired comparisons of every map-equipped agent against every map-free one
   (``extras.uses_map``; when some group lacks it, every pair of groups is compared);
-- per suite, success per goal category;
+- per suite, success per goal category, and per way the goal was named (v2 episodes);
+- per suite run with several seeds (``--seeds``), each agent's success over seeds with its
+  between-seed spread (std and min-max of the per-seed rates), and every pair of agents whose
+  difference is within that noise flagged;
+- with several runs, per suite the success of every run side by side;
 - for agents whose records carry ``extras.path_xy``, a top-down view of a few episodes over the
   floor plan of ``extras.scene`` (a path under ``scenes/``) with start and goal;
+- per suite, one row per episode (HTML only: :mod:`harness.report.episodes`), failures first,
+  linking the episode's replay video and map when ``RUN/replays`` holds them;
 - for records with ``extras.heatmap_npz`` (``points`` (N, 3), ``values`` (N,)), a top-down
   heatmap. A relative path is taken from the run folder the record came from (from
   ``base_dir`` for records passed directly).
@@ -32,10 +40,12 @@ import numpy as np
 from conceptfusion.errors import MissingFileError
 from conceptfusion.io_utils import atomic_write_bytes, atomic_write_text
 from harness.report import plots as report_plots
+from harness.report.episodes import episode_table
+from harness.report.document import Bullets, Cell, Figure, Heading, Paragraph, ReportDocument, Table, render_markdown
 from harness.runner.results import RESULTS_FILE, ResultsFormatError, load_results, record_key
-from harness.report.stats import group_key, paired_comparison, per_category, summarize
+from harness.report.stats import group_key, paired_comparison, per_category, seed_spread, summarize, within_noise
 
-__all__ = ["write_report", "REPORT_FILE"]
+__all__ = ["write_report", "build_report", "write_markdown", "REPORT_FILE"]
 
 REPORT_FILE = "report.md"
 _PATH_EPISODES = 3
@@ -43,33 +53,26 @@ _MAX_HEATMAPS = 4
 _MAX_PAIRS = 24
 
 
-def _collect(inputs, base_dir) -> list[tuple[dict, Path | None]]:
-    """(record, folder its relative paths start from) for every input."""
+def _collect(inputs, base_dir) -> list[tuple[dict, Path | None, str]]:
+    """(record, folder its relative paths start from, run label) for every input; the label is
+    the run folder as given, or the record's ``run_id`` for records passed directly."""
     items = [inputs] if isinstance(inputs, (str, os.PathLike)) else list(inputs)
     if not items:
         raise ValueError("write_report: expected run folders or records, got an empty sequence")
-    out: list[tuple[dict, Path | None]] = []
+    out: list[tuple[dict, Path | None, str]] = []
     for item in items:
         if isinstance(item, dict):
-            out.append((item, Path(base_dir) if base_dir is not None else None))
+            out.append((item, Path(base_dir) if base_dir is not None else None, str(item.get("run_id"))))
         elif isinstance(item, (str, os.PathLike)):
             p = Path(item)
             results = p / RESULTS_FILE if p.is_dir() else p
             if not results.is_file():
                 raise MissingFileError(f"write_report: no results at {results} (expected a run folder holding "
                                        f"{RESULTS_FILE}, or a results file)")
-            out.extend((r, results.parent) for r in load_results(results))
+            out.extend((r, results.parent, str(results.parent)) for r in load_results(results))
         else:
             raise TypeError(f"write_report: expected run folders (paths) or records (dicts), got {type(item).__name__}")
     return out
-
-
-def _cell(text) -> str:
-    return str(text).replace("|", "\\|")
-
-
-def _alt(text) -> str:
-    return str(text).replace("[", "(").replace("]", ")")
 
 
 def _fmt(stat) -> str:
@@ -78,6 +81,14 @@ def _fmt(stat) -> str:
     if math.isnan(stat.low):
         return f"{stat.mean:.2f}"
     return f"{stat.mean:.2f} [{stat.low:.2f}, {stat.high:.2f}]"
+
+
+def _stat_cell(stat) -> Cell:
+    """A metric cell: its text, sorted by the mean, with the interval drawn for rates."""
+    if stat is None:
+        return Cell("-", sort=math.nan)
+    bar = (stat.mean, stat.low, stat.high) if stat.rate and not math.isnan(stat.low) else None
+    return Cell(_fmt(stat), sort=stat.mean, interval=bar)
 
 
 def _fmt_seconds(s: float) -> str:
@@ -94,48 +105,68 @@ class _Writer:
 
     def __init__(self, out_dir: Path):
         self.out_dir = out_dir
-        self.names: set[str] = set()
+        self.figures: dict[str, bytes] = {}
         self.skipped: list[str] = []
 
     def figure(self, stem: str, png: bytes) -> str:
         base = re.sub(r"[^A-Za-z0-9._-]+", "-", stem).strip("-") or "figure"
         name, i = f"{base}.png", 1
-        while name in self.names:
+        while name in self.figures:
             i += 1
             name = f"{base}-{i}.png"
-        self.names.add(name)
+        self.figures[name] = png
         atomic_write_bytes(self.out_dir / name, png)
         return name
 
     def skip(self, what: str, why: str) -> None:
-        self.skipped.append(f"- {what}: {why}")
+        self.skipped.append(f"{what}: {why}")
 
 
-def _summary_section(records) -> list[str]:
+def _summary_section(records) -> list:
     statuses = Counter(r["status"] for r in records)
     walls = [float(r["timings"]["wall_s"]) for r in records if "wall_s" in (r.get("timings") or {})]
     groups = {group_key(r) for r in records}
-    return [
-        "## Run summary", "",
-        f"- episodes: {len(records)} ({', '.join(f'{k} {v}' for k, v in sorted(statuses.items()))})",
-        f"- runs: {', '.join(sorted({str(r.get('run_id')) for r in records}))}",
-        f"- suites: {', '.join(sorted({r['suite'] for r in records}))}",
-        f"- agents: {', '.join(sorted({g[1] for g in groups}))}",
-        f"- encoders: {', '.join(sorted({g[2] for g in groups}))}",
-        f"- total episode wall time: {_fmt_seconds(sum(walls)) if walls else 'not recorded'}", "",
-    ]
+    return [Heading(2, "Run summary"), Bullets((
+        f"episodes: {len(records)} ({', '.join(f'{k} {v}' for k, v in sorted(statuses.items()))})",
+        f"runs: {', '.join(sorted({str(r.get('run_id')) for r in records}))}",
+        f"suites: {', '.join(sorted({r['suite'] for r in records}))}",
+        f"agents: {', '.join(sorted({g[1] for g in groups}))}",
+        f"encoders: {', '.join(sorted({g[2] for g in groups}))}",
+        f"total episode wall time: {_fmt_seconds(sum(walls)) if walls else 'not recorded'}",
+    ))]
 
 
-def _suite_table(rows) -> list[str]:
+def _suite_table(rows, suite: str) -> Table:
     others = sorted({m for r in rows for m in r.metrics} - {"success", "spl"})
-    head = ["agent", "encoder", "n", "failed/timeout", "success [95% CI]", "SPL [95% CI]", *others, "s/episode"]
-    lines = ["| " + " | ".join(head) + " |", "|" + "---|" * len(head)]
+    head = ("agent", "encoder", "n", "failed/timeout", "success [95% CI]", "SPL [95% CI]", *others, "s/episode")
+    body = []
     for r in rows:
-        cells = [_cell(r.agent), _cell(r.encoder), str(r.n), f"{r.n_failed}/{r.n_timeout}",
-                 _fmt(r.metrics.get("success")), _fmt(r.metrics.get("spl")),
-                 *(_fmt(r.metrics.get(m)) for m in others), _fmt_seconds(r.wall_s)]
-        lines.append("| " + " | ".join(cells) + " |")
-    return lines
+        body.append((r.agent, r.encoder, Cell(str(r.n), sort=r.n),
+                     Cell(f"{r.n_failed}/{r.n_timeout}", sort=r.n_failed + r.n_timeout),
+                     _stat_cell(r.metrics.get("success")), _stat_cell(r.metrics.get("spl")),
+                     *(_stat_cell(r.metrics.get(m)) for m in others), Cell(_fmt_seconds(r.wall_s), sort=r.wall_s)))
+    return Table(head, body, name=f"suite-{suite}")
+
+
+def _runs_side_by_side(run_items, suite: str) -> list:
+    """Success of every (agent, encoder) in each run of ``suite``, one column per run."""
+    runs = sorted({label for _, _, label in run_items})
+    per_run = {label: {(row.agent, row.encoder): row for row in summarize(
+        [r for r, _, lab in run_items if lab == label and r["suite"] == suite], ("success",))} for label in runs}
+    groups = sorted({g for rows in per_run.values() for g in rows})
+    if not groups or not any("success" in row.metrics for rows in per_run.values() for row in rows.values()):
+        return []
+    head = ("agent", "encoder", *(f"{label}: success [95% CI] (n)" for label in runs))
+    body = []
+    for g in groups:
+        cells = []
+        for label in runs:
+            row = per_run[label].get(g)
+            stat = row.metrics.get("success") if row else None
+            c = _stat_cell(stat)
+            cells.append(Cell(f"{c.text} ({row.n})", sort=c.sort, interval=c.interval) if row else c)
+        body.append((g[0], g[1], *cells))
+    return [Heading(3, "Runs side by side"), Table(head, body, name=f"runs-{suite}")]
 
 
 def _uses_map(records) -> dict[tuple[str, str], bool | None]:
@@ -151,7 +182,7 @@ def _uses_map(records) -> dict[tuple[str, str], bool | None]:
     return out
 
 
-def _comparisons(records, suite: str, w: _Writer) -> list[str]:
+def _comparisons(records, suite: str, w: _Writer) -> list:
     flags = _uses_map(records)
     groups = sorted(flags)
     if all(isinstance(f, bool) for f in flags.values()):
@@ -171,10 +202,8 @@ def _comparisons(records, suite: str, w: _Writer) -> list[str]:
     if not metrics:
         w.skip(f"paired comparisons, suite {suite}", "no success, SPL, accuracy or mIoU metric to compare")
         return []
-    head = ["A", "B", "metric", "pairs", "A mean", "B mean", "A - B [95% CI]", "A only / B only", "p"]
-    lines = [f"### Paired comparisons: {basis}", "",
-             "Episodes paired by suite, episode id and seed; p: exact McNemar for rates, Wilcoxon signed-rank "
-             "otherwise.", "", "| " + " | ".join(head) + " |", "|" + "---|" * len(head)]
+    head = ("A", "B", "metric", "pairs", "A mean", "B mean", "A - B [95% CI]", "A only / B only", "p")
+    body = []
     for (a, ea), (b, eb) in pairs:
         for metric in metrics:
             try:
@@ -183,11 +212,57 @@ def _comparisons(records, suite: str, w: _Writer) -> list[str]:
                 w.skip(f"comparison {a} ({ea}) vs {b} ({eb}), {metric}, suite {suite}", str(exc))
                 continue
             disc = f"{res.a_only} / {res.b_only}" if res.binary else "-"
-            lines.append("| " + " | ".join([
-                f"{_cell(a)} ({_cell(ea)})", f"{_cell(b)} ({_cell(eb)})", metric, str(res.n_pairs),
-                f"{res.mean_a:.2f}", f"{res.mean_b:.2f}", f"{res.mean_diff:+.2f} [{res.ci_low:+.2f}, {res.ci_high:+.2f}]",
-                disc, f"{res.p_value:.3g}"]) + " |")
-    return lines + [""]
+            body.append((f"{a} ({ea})", f"{b} ({eb})", metric, Cell(str(res.n_pairs), sort=res.n_pairs),
+                         Cell(f"{res.mean_a:.2f}", sort=res.mean_a), Cell(f"{res.mean_b:.2f}", sort=res.mean_b),
+                         Cell(f"{res.mean_diff:+.2f} [{res.ci_low:+.2f}, {res.ci_high:+.2f}]", sort=res.mean_diff),
+                         Cell(disc, sort=(res.a_only - res.b_only) if res.binary else math.nan),
+                         Cell(f"{res.p_value:.3g}", sort=res.p_value)))
+    return [Heading(3, f"Paired comparisons: {basis}"),
+            Paragraph("Episodes paired by suite, episode id and seed; p: exact McNemar for rates, Wilcoxon "
+                      "signed-rank otherwise."), Table(head, body, name=f"pairs-{suite}")]
+
+
+def _seed_spread_section(records, suite: str) -> list:
+    """Per (agent, encoder) of ``suite``: success over seeds with its between-seed spread, and
+    each pair's difference against their combined spread (:func:`~harness.report.stats.within_noise`).
+    Empty when no group ran more than one seed."""
+    spreads = [s for s in seed_spread(records) if len(s.seeds) > 1]
+    if not spreads:
+        return []
+    head = ("agent", "encoder", "seeds", "episodes", "success (mean over seeds)", "between-seed std", "min - max")
+    body = [(s.agent, s.encoder, Cell(str(len(s.seeds)), sort=len(s.seeds)), Cell(str(s.episodes), sort=s.episodes),
+             Cell(f"{s.mean:.3f}", sort=s.mean), Cell(f"{s.std:.3f}", sort=s.std),
+             Cell(f"{s.low:.3f} - {s.high:.3f}", sort=s.high - s.low)) for s in spreads]
+    pair_head = ("A", "B", "A - B", "combined spread", "within noise")
+    pairs = []
+    for i, a in enumerate(spreads):
+        for b in spreads[i + 1:]:
+            combined = math.hypot(a.std, b.std)
+            noise = within_noise(a, b)
+            pairs.append((f"{a.agent} ({a.encoder})", f"{b.agent} ({b.encoder})", Cell(f"{a.mean - b.mean:+.3f}", sort=a.mean - b.mean),
+                          Cell(f"{combined:.3f}", sort=combined), "within noise" if noise else "no"))
+    blocks = [Heading(3, "Seed noise"),
+              Paragraph("Each episode ran with several seeds; a seed's rate is over the episodes every seed ran. "
+                        "std: sample standard deviation of the per-seed rates. A difference is *within noise* when "
+                        "it is no larger than the combined spread sqrt(std_A^2 + std_B^2), what a one-seed "
+                        "comparison of the two can move by."),
+              Table(head, body, name=f"seeds-{suite}")]
+    if pairs:
+        blocks.append(Table(pair_head, pairs, name=f"seed-pairs-{suite}"))
+    return blocks
+
+
+def _description_kind_section(records, suite: str) -> list:
+    """Success per way the goal was named (``extras.description_kind`` of v2 episodes: name,
+    synonym, attribute, function), per (agent, encoder); empty when no record says."""
+    kinds = per_category(records, by="description_kind")
+    if not kinds:
+        return []
+    names = sorted({k for v in kinds.values() for k in v})
+    head = ("agent", "encoder", *names)
+    body = [(a, e, *(Cell(f"{v[k][0]:.2f} ({v[k][1]})", sort=v[k][0]) if k in v else "-" for k in names))
+            for (_, a, e), v in kinds.items()]
+    return [Heading(3, "Success by how the goal was named"), Table(head, body, name=f"description-kinds-{suite}")]
 
 
 def _scene_grid(ref: str, cache: dict):
@@ -204,7 +279,7 @@ def _scene_grid(ref: str, cache: dict):
     return cache[ref]
 
 
-def _path_figures(records, suite: str, w: _Writer) -> list[str]:
+def _path_figures(records, suite: str, w: _Writer) -> list:
     lines, cache = [], {}
     by_group: dict[tuple, list[dict]] = {}
     for r in records:
@@ -234,11 +309,11 @@ def _path_figures(records, suite: str, w: _Writer) -> list[str]:
             w.skip(f"top-down paths of {key[1]} ({key[2]})", str(exc))
             continue
         name = w.figure(f"paths_{suite}_{key[1]}_{key[2]}", png)
-        lines += [f"![paths of {_alt(key[1])} ({_alt(key[2])})]({name})", ""]
+        lines.append(Figure(name, f"paths of {key[1]} ({key[2]})"))
     return lines
 
 
-def _heatmap_figures(items, w: _Writer) -> list[str]:
+def _heatmap_figures(items, w: _Writer) -> list:
     lines, drawn = [], 0
     for r, base in items:
         ref = (r.get("extras") or {}).get("heatmap_npz")
@@ -259,9 +334,68 @@ def _heatmap_figures(items, w: _Writer) -> list[str]:
             w.skip(f"heatmap {ref} ({r['episode_id']})", str(exc))
             continue
         name = w.figure(f"heatmap_{r['suite']}_{r['episode_id']}_{r['seed']}", png)
-        lines += [f"![query heatmap, {_alt(r['episode_id'])}]({name})", ""]
+        lines.append(Figure(name, f"query heatmap, {r['episode_id']}"))
         drawn += 1
-    return (["## Query heatmaps", ""] + lines) if lines else []
+    return ([Heading(2, "Query heatmaps")] + lines) if lines else []
+
+
+def build_report(run_dirs_or_records, out_dir: str | os.PathLike, *,
+                 title: str = "ConceptFusion harness report",
+                 base_dir: str | os.PathLike | None = None) -> ReportDocument:
+    """Build the report as data and write its PNG figures into ``out_dir``.
+
+    Arguments as for :func:`write_report`. Raises ``ValueError`` when there is nothing to report.
+    """
+    collected = _collect(run_dirs_or_records, base_dir)
+    run_items = list({(label, record_key(r)): (r, b, label) for r, b, label in collected}.values())
+    items = list({record_key(r): (r, b) for r, b, _ in collected}.values())
+    records = [r for r, _ in items]
+    if not records:
+        raise ResultsFormatError("write_report: the runs hold no records yet (empty results files?)")
+    out = Path(out_dir)
+    out.mkdir(parents=True, exist_ok=True)
+    w = _Writer(out)
+    rows = summarize(records)
+    several_runs = len({label for _, _, label in run_items}) > 1
+    blocks: list = _summary_section(records)
+    for suite in sorted({r.suite for r in rows}):
+        suite_rows = [r for r in rows if r.suite == suite]
+        suite_recs = [r for r in records if r["suite"] == suite]
+        blocks += [Heading(2, f"Suite `{suite}`"), _suite_table(suite_rows, suite)]
+        with_success = [r for r in suite_rows if "success" in r.metrics]
+        if with_success:
+            labels = [f"{r.agent}\n({r.encoder})" for r in with_success]
+            stats = [r.metrics["success"] for r in with_success]
+            png = report_plots.success_bars(labels, [s.mean for s in stats], [s.low for s in stats],
+                                            [s.high for s in stats], title=f"success by agent, suite {suite} (95% CI)")
+            blocks.append(Figure(w.figure(f"success_{suite}", png), f"success by agent, {suite}"))
+        else:
+            w.skip(f"success chart, suite {suite}", "no record has a success metric")
+        if several_runs:
+            blocks += _runs_side_by_side(run_items, suite)
+        blocks += _comparisons(suite_recs, suite, w)
+        blocks += _seed_spread_section(suite_recs, suite)
+        cats = per_category(suite_recs)
+        if cats:
+            groups = {f"{a} ({e})": v for (_, a, e), v in cats.items()}
+            png = report_plots.category_bars(groups, title=f"success per goal category, suite {suite}")
+            blocks += [Heading(3, "Success per goal category"),
+                       Figure(w.figure(f"category_{suite}", png), f"success per category, {suite}")]
+        else:
+            w.skip(f"per-category chart, suite {suite}", "no record has a category and a success value")
+        blocks += _description_kind_section(suite_recs, suite)
+        path_blocks = _path_figures(suite_recs, suite, w)
+        if path_blocks:
+            blocks += [Heading(3, "Episodes from above")] + path_blocks
+        blocks.append(episode_table(run_items, suite, out, show_run=several_runs))
+    blocks += _heatmap_figures(items, w)
+    blocks += [Heading(2, "Skipped"), Bullets(tuple(w.skipped) or ("nothing",))]
+    return ReportDocument(title=title, out_dir=out, blocks=blocks, figures=w.figures, items=run_items)
+
+
+def write_markdown(doc: ReportDocument) -> Path:
+    """Write ``doc.out_dir/report.md`` (atomically); returns its path."""
+    return atomic_write_text(doc.out_dir / REPORT_FILE, render_markdown(doc))
 
 
 def write_report(run_dirs_or_records, out_dir: str | os.PathLike, *, title: str = "ConceptFusion harness report",
@@ -273,40 +407,4 @@ def write_report(run_dirs_or_records, out_dir: str | os.PathLike, *, title: str 
     passed directly. A retried episode counts once, with its newest record. Raises
     ``ValueError`` when there is nothing to report.
     """
-    items = list({record_key(r): (r, b) for r, b in _collect(run_dirs_or_records, base_dir)}.values())
-    records = [r for r, _ in items]
-    if not records:
-        raise ResultsFormatError("write_report: the runs hold no records yet (empty results files?)")
-    out = Path(out_dir)
-    out.mkdir(parents=True, exist_ok=True)
-    w = _Writer(out)
-    rows = summarize(records)
-    lines = [f"# {title}", ""] + _summary_section(records)
-    for suite in sorted({r.suite for r in rows}):
-        suite_rows = [r for r in rows if r.suite == suite]
-        suite_recs = [r for r in records if r["suite"] == suite]
-        lines += [f"## Suite `{suite}`", ""] + _suite_table(suite_rows) + [""]
-        with_success = [r for r in suite_rows if "success" in r.metrics]
-        if with_success:
-            labels = [f"{r.agent}\n({r.encoder})" for r in with_success]
-            stats = [r.metrics["success"] for r in with_success]
-            png = report_plots.success_bars(labels, [s.mean for s in stats], [s.low for s in stats],
-                                            [s.high for s in stats], title=f"success by agent, suite {suite} (95% CI)")
-            lines += [f"![success by agent, {_alt(suite)}]({w.figure(f'success_{suite}', png)})", ""]
-        else:
-            w.skip(f"success chart, suite {suite}", "no record has a success metric")
-        lines += _comparisons(suite_recs, suite, w)
-        cats = per_category(suite_recs)
-        if cats:
-            groups = {f"{a} ({e})": v for (_, a, e), v in cats.items()}
-            png = report_plots.category_bars(groups, title=f"success per goal category, suite {suite}")
-            lines += ["### Success per goal category", "", f"![success per category, {_alt(suite)}]"
-                      f"({w.figure(f'category_{suite}', png)})", ""]
-        else:
-            w.skip(f"per-category chart, suite {suite}", "no record has a category and a success value")
-        path_lines = _path_figures(suite_recs, suite, w)
-        if path_lines:
-            lines += ["### Episodes from above", ""] + path_lines
-    lines += _heatmap_figures(items, w)
-    lines += ["## Skipped", ""] + (w.skipped or ["- nothing"]) + [""]
-    return atomic_write_text(out / REPORT_FILE, "\n".join(lines))
+    return write_markdown(build_report(run_dirs_or_records, out_dir, title=title, base_dir=base_dir))

@@ -23,7 +23,8 @@ from harness.runner.results import agent_label, latest_records
 
 __all__ = [
     "DEFAULT_METRICS", "FAILURE_VALUES", "MetricStat", "SummaryRow", "PairedResult", "wilson_interval", "bootstrap_ci",
-    "metric_value", "mcnemar_exact", "summarize", "paired_comparison", "per_category", "group_key",
+    "metric_value", "mcnemar_exact", "summarize", "paired_comparison", "per_category", "group_key", "SeedSpread",
+    "seed_spread", "within_noise",
 ]
 
 DEFAULT_METRICS = ("success", "spl")
@@ -297,16 +298,78 @@ def paired_comparison(records, agent_a: str, agent_b: str, metric: str = "succes
                         float(xb.mean()), float(diff.mean()), low, high, float(p), binary, a_only, b_only)
 
 
-def per_category(records, metric: str = "success") -> dict[tuple[str, str, str], dict[str, tuple[float, int]]]:
+def per_category(records, metric: str = "success", *, by: str = "category") -> dict[tuple[str, str, str], dict[str, tuple[float, int]]]:
     """Mean of ``metric`` per goal category: ``{(suite, agent, encoder): {category: (mean, n)}}``.
 
-    Records without a category or without a value for the metric are left out.
+    ``by``: ``"category"`` (the record's goal category) or the name of an ``extras`` field to
+    group by instead (``"description_kind"``: how the goal was named). Records without that field
+    or without a value for the metric are left out.
     """
     sums: dict[tuple, dict[str, list[float]]] = {}
     for r in latest_records(records):
-        cat = r.get("category")
+        cat = r.get("category") if by == "category" else (r.get("extras") or {}).get(by)
         value = metric_value(r, metric)
         if cat is None or value is None:
             continue
         sums.setdefault(group_key(r), {}).setdefault(str(cat), []).append(float(value))
     return {key: {c: (float(np.mean(v)), len(v)) for c, v in sorted(cats.items())} for key, cats in sorted(sums.items())}
+
+
+@dataclass(frozen=True)
+class SeedSpread:
+    """How much one (suite, agent label, encoder) group's mean moves between seeds.
+
+    Only episodes run with every seed of the group count (so each seed's rate is over the same
+    episodes). ``rates`` holds each seed's mean of the metric over them; ``mean`` is their
+    mean, ``std`` their sample standard deviation (NaN with one seed), ``low``/``high`` their
+    min and max.
+    """
+
+    suite: str
+    agent: str
+    encoder: str
+    seeds: tuple[int, ...]
+    episodes: int
+    """Episodes run with every seed (each seed's rate is over these)."""
+    rates: tuple[float, ...]
+    mean: float
+    std: float
+    low: float
+    high: float
+
+
+def seed_spread(records, metric: str = "success") -> list[SeedSpread]:
+    """One :class:`SeedSpread` per (suite, agent label, encoder) group, sorted by that key; groups
+    whose records have no value for ``metric`` are left out. See the module docstring for how
+    failed episodes are scored.
+
+    Shape:
+        each ``rates`` has one entry per seed of ``seeds``.
+    """
+    by_group: dict[tuple, dict[int, dict[str, float]]] = {}
+    for r in latest_records(records):
+        v = metric_value(r, metric)
+        if v is None:
+            continue
+        by_group.setdefault(group_key(r), {}).setdefault(int(r["seed"]), {})[r["episode_id"]] = float(v)
+    out = []
+    for key in sorted(by_group):
+        per_seed = by_group[key]
+        seeds = tuple(sorted(per_seed))
+        common = set.intersection(*(set(per_seed[s]) for s in seeds))
+        if not common:
+            continue
+        rates = tuple(float(np.mean([per_seed[s][e] for e in sorted(common)])) for s in seeds)
+        std = float(np.std(rates, ddof=1)) if len(rates) > 1 else math.nan
+        out.append(SeedSpread(*key, seeds=seeds, episodes=len(common), rates=rates, mean=float(np.mean(rates)), std=std,
+                              low=min(rates), high=max(rates)))
+    return out
+
+
+def within_noise(a: SeedSpread, b: SeedSpread) -> bool | None:
+    """Whether the difference of two groups' seed means is no larger than their combined
+    between-seed spread, ``sqrt(std_a^2 + std_b^2)`` (what a one-seed comparison of the two can
+    move by); None when either has a single seed (no spread to compare with)."""
+    if len(a.seeds) < 2 or len(b.seeds) < 2:
+        return None
+    return abs(a.mean - b.mean) <= math.hypot(a.std, b.std)

@@ -16,7 +16,7 @@ from pathlib import Path
 
 from harness.maps.suites import MapCase, get_map_suite
 from harness.runner.jobs import job_record, worker_thread_share
-from harness.runner.suites import get_suite
+from harness.runner.suites import get_suite, suite_encoder
 
 __all__ = ["MapJob", "map_suite_jobs", "run_map_job"]
 
@@ -58,6 +58,11 @@ class MapJob:
         return f"{self.agent} {self.scene_id} [{self.encoder}]"
 
     @property
+    def expected_s(self) -> float:
+        """Rough length of the job in seconds (the backends start the longest jobs first)."""
+        return {"query": 2.0, "query-open": 10.0, "ablation": 0.5, "spatial": 1.0}.get(self.suite, 1.0)
+
+    @property
     def case(self) -> MapCase:
         return MapCase(self.agent, self.encoder, self.scene_id, self.note)
 
@@ -79,7 +84,7 @@ class MapJob:
 
 def map_suite_jobs(name: str, config, run_id: str, *, out_dir: str | Path | None = None) -> list[MapJob]:
     """Jobs of map suite ``name`` for a :class:`harness.runner.run.RunConfig` (``encoder``, ``limit``
-    (scenes of each kind), ``seed``, ``agent_kwargs`` (see :mod:`harness.maps.suites`),
+    (scenes of each kind), ``seed`` and ``seeds`` (one job per seed), ``agent_kwargs`` (see :mod:`harness.maps.suites`),
     ``timeout_s`` (default: the suite's)); ``out_dir`` is the run folder for side files.
 
     Raises ``ValueError`` for a suite that is not a map suite, naming the nearest ones.
@@ -89,9 +94,10 @@ def map_suite_jobs(name: str, config, run_id: str, *, out_dir: str | Path | None
     timeout_s = float(config.timeout_s or get_suite(name).timeout_s)
     out = None if out_dir is None else str(Path(out_dir).resolve())
     return [
-        MapJob(run_id=str(run_id), suite=name, agent=c.agent, encoder=c.encoder, scene_id=c.scene_id, seed=int(config.seed),
+        MapJob(run_id=str(run_id), suite=name, agent=c.agent, encoder=c.encoder, scene_id=c.scene_id, seed=seed,
                options=opts, out_dir=out, note=c.note, timeout_s=timeout_s)
-        for c in suite.cases(config.encoder, config.limit)
+        for c in suite.cases(suite_encoder(get_suite(name), config.encoder), config.limit)
+        for seed in range(int(config.seed), int(config.seed) + int(config.seeds))
     ]
 
 

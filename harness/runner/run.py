@@ -36,7 +36,7 @@ from harness.runner.results import (
     agent_label, append_record, completed_keys, load_results, read_run_config, record_key, repair_results, write_run_config,
 )
 from harness.runner.settings import accepts_keyword, check_agent, validate_run_config
-from harness.runner.suites import Suite, get_suite
+from harness.runner.suites import Suite, get_suite, suite_encoder
 from harness.runner.tasks import EpisodeJob
 from sim_envs.scenes.episodes import load_episodes
 
@@ -56,10 +56,11 @@ class RunConfig:
     agents: tuple[str, ...] | None = None
     """Agents per episode suite (``--agent``; None: each suite's defaults): registered names or
     ``"module:Class"`` import paths, each fitting every episode suite of the run."""
-    encoder: str = "embedded"
+    encoder: str | None = None
     """Perception for the map-using agents and the map suites (``--encoder``): an encoder spec
     (:class:`~conceptfusion.perception.featurizer.PerceptionSpec`, accepted too and stored as its
-    string); an unknown name fails here, naming the nearest ones."""
+    string); an unknown name fails here, naming the nearest ones. None: each suite's default, the
+    shipped tower of its world (:func:`~harness.runner.suites.suite_encoder`)."""
     agent_kwargs: dict = field(default_factory=dict)
     """Extra options (``--agent-option KEY=VALUE``) for every agent that accepts them (e.g.
     ``{"integrate_every": 2}``) and for the map suites
@@ -70,6 +71,10 @@ class RunConfig:
     """First N >= 1 episodes of each suite (``--limit``; None: the suite's own limit, or all)."""
     seed: int = 0
     """Episode seed >= 0 (``--seed``)."""
+    seeds: int = 1
+    """Seeds per episode >= 1 (``--seeds``): every episode (and map-suite scene) runs with seeds
+    ``seed, seed + 1, ..., seed + seeds - 1``, one record each (records are keyed by seed), so
+    that the report can give the between-seed spread of each agent's success."""
     backend: str = "process"
     """``--backend``: one of :data:`~harness.runner.backends.BACKENDS`."""
     workers: int | None = None
@@ -81,6 +86,10 @@ class RunConfig:
     plugins: tuple[str, ...] = ()
     """Modules imported (in every worker too) before agents are built (``--import``): they register
     agents by name with :func:`agents.registry.register_agent`."""
+    record: str = "failures"
+    """Episode recordings (``--record``): ``"failures"`` (the episodes that failed), ``"all"`` or
+    ``"none"``; written to ``RUN/replays/`` (:mod:`harness.replay`). Stored in ``run.json`` beside
+    the settings, not in them: results do not depend on it, and a run may resume with another."""
 
     def __post_init__(self) -> None:
         validate_run_config(self)
@@ -90,6 +99,7 @@ class RunConfig:
         return {
             "suites": list(self.suites), "agents": list(self.agents) if self.agents else None, "encoder": self.encoder,
             "agent_kwargs": dict(self.agent_kwargs), "limit": self.limit, "seed": self.seed,
+            **({"seeds": self.seeds} if self.seeds != 1 else {}),  # absent at 1: a run.json of before resumes
             **({"plugins": list(self.plugins)} if self.plugins else {}),
         }
 
@@ -132,24 +142,29 @@ def _agent_kwargs_for(agent: str, encoder: str, extra: dict) -> dict:
     return kw
 
 
-def episode_jobs(suite: Suite, config: RunConfig, run_id: str) -> list[EpisodeJob]:
-    """Jobs of an episode suite: every (agent, episode) pair, agents in order."""
+def episode_jobs(suite: Suite, config: RunConfig, run_id: str, *, out_dir: str | Path | None = None) -> list[EpisodeJob]:
+    """Jobs of an episode suite: every (agent, episode, seed) triple, agents in order, then
+    episodes (the first ``config.limit``, else the suite's ``agent_limits`` for the agent, else
+    its ``limit``), then the ``config.seeds`` seeds from ``config.seed``. With ``out_dir`` (the run
+    folder) the jobs record episodes as ``config.record`` says into ``out_dir/replays/``; without
+    it they record nothing."""
     import_plugins(config.plugins)
-    episodes = load_episodes(suite.episodes_file).episodes
-    limit = config.limit if config.limit is not None else suite.limit
-    if limit is not None:
-        episodes = episodes[:limit]
+    out = None if out_dir is None else str(Path(out_dir).resolve())
+    all_episodes = load_episodes(suite.episodes_file).episodes
     agents = config.agents or suite.agents
     jobs = []
     for agent in agents:
         check_agent(agent, suite)
-        kw = _agent_kwargs_for(agent, suite.encoder or config.encoder, config.agent_kwargs)
+        kw = _agent_kwargs_for(agent, suite_encoder(suite, config.encoder), config.agent_kwargs)
+        limit = config.limit if config.limit is not None else suite.agent_limits.get(agent, suite.limit)
+        episodes = all_episodes if limit is None else all_episodes[:limit]
         for ep in episodes:
-            jobs.append(EpisodeJob(
-                run_id=run_id, suite=suite.name, task=suite.task, agent=agent, agent_kwargs=kw, episode=ep,
-                seed=config.seed, env_kwargs=dict(suite.env_kwargs), timeout_s=float(config.timeout_s or suite.timeout_s),
-                plugins=tuple(config.plugins),
-            ))
+            for seed in range(config.seed, config.seed + config.seeds):
+                jobs.append(EpisodeJob(
+                    run_id=run_id, suite=suite.name, task=suite.task, agent=agent, agent_kwargs=kw, episode=ep,
+                    seed=seed, env_kwargs=dict(suite.env_kwargs), timeout_s=float(config.timeout_s or suite.timeout_s),
+                    plugins=tuple(config.plugins), record=config.record if out_dir is not None else "none", out_dir=out,
+                ))
     return jobs
 
 
@@ -158,7 +173,7 @@ def _map_jobs(suite: Suite, config: RunConfig, run_id: str, run_dir: Path) -> li
 
 
 def _episode_jobs(suite: Suite, config: RunConfig, run_id: str, run_dir: Path) -> list[Job]:
-    return episode_jobs(suite, config, run_id)
+    return episode_jobs(suite, config, run_id, out_dir=run_dir)
 
 
 _JOB_BUILDERS = {"episodes": _episode_jobs, "maps": _map_jobs}
@@ -232,7 +247,8 @@ def plan_run(config: RunConfig, run_dir: str | Path, *, resume: bool = False) ->
     if resume:
         repair_results(results)
     else:
-        write_run_config(run_dir, {"run_id": run_id, "settings": config.settings(), "backend": config.backend}, overwrite=True)
+        write_run_config(run_dir, {"run_id": run_id, "settings": config.settings(), "backend": config.backend,
+                                   "record": config.record}, overwrite=True)
     done = completed_keys(load_results(results))
     todo = [j for j in jobs if record_key(j.key_record()) not in done]
     return RunPlan(config, run_dir, run_id, jobs, todo)

@@ -20,7 +20,9 @@ from agents.spec import Option, check_option
 from conceptfusion.errors import HarnessError
 from conceptfusion.names import did_you_mean, unknown_name_error
 from conceptfusion.perception.featurizer import PerceptionSpec
+from harness.maps.spatial import DEFAULT_PARSER, SUITE_PARSERS
 from harness.maps.suites import MAP_SUITES
+from harness.replay.record import check_record_mode
 from harness.runner.backends import BACKENDS, parse_ray_address
 from harness.runner.jobs import import_plugins
 from harness.runner.suites import SUITES, Suite, get_suite
@@ -33,6 +35,7 @@ MAP_SUITE_OPTIONS: dict[str, Option] = {
     "width": Option.at_least(int, 160, 1),
     "height": Option.at_least(int, 120, 1),
     "proposer": Option(str, "rgbd", lambda v: bool(PerceptionSpec.parse("color", proposer=v)), "a mask proposer name"),
+    "parser": Option(str, DEFAULT_PARSER, lambda v: v in SUITE_PARSERS, f"a spatial-question parser: {' or '.join(SUITE_PARSERS)}"),
 }
 """The values the map suites' options (``agent_kwargs`` keys they read, see
 :mod:`harness.maps.suites`) accept."""
@@ -192,11 +195,13 @@ def validate_run_config(config: Any) -> None:
                 except ValueError as exc:
                     raise HarnessError(f"--agent: {exc}") from exc
     try:
-        put("encoder", str(PerceptionSpec.parse(config.encoder)))
+        if config.encoder is not None:
+            put("encoder", str(PerceptionSpec.parse(config.encoder)))
     except (ValueError, TypeError) as exc:
         raise HarnessError(f"--encoder: {exc}") from exc
     put("limit", _int(config.limit, "--limit", 1, "episodes or scenes per suite", allow_none=True))
     put("seed", _int(config.seed, "--seed", 0, "the episode seed"))
+    put("seeds", _int(config.seeds, "--seeds", 1, "seeds per episode"))
     if config.backend not in BACKENDS:
         raise HarnessError(f"--backend: expected one of {', '.join(BACKENDS)}, got {config.backend!r}"
                            + did_you_mean(config.backend, BACKENDS, n=1, cutoff=0.5))
@@ -209,6 +214,7 @@ def validate_run_config(config: Any) -> None:
             raise HarnessError(f"--address: expected 'auto', 'HOST:PORT' or 'ray://HOST:PORT', got {config.address!r}")
         parse_ray_address(config.address)
     put("timeout_s", _seconds(config.timeout_s, "--timeout"))
+    check_record_mode(config.record, "--record")
     _check_options(config, suites)
 
 

@@ -14,11 +14,20 @@ Episode suites roll agents through environment episodes (:mod:`harness.runner.ta
 Map suites score ConceptFusion maps against simulator ground truth (:mod:`harness.maps.suites`):
 
 * ``query``: text, image and click queries over fused tabletop maps (paper Tables I-III);
+* ``query-open``: open-vocabulary text queries over fused v2 tabletop maps (the paper's UnCoCo
+  analogue): names, synonyms, parents, attributes, functions and absent objects, split by seen
+  instance, held-out instance and held-out category;
 * ``ablation``: global-only / local-only / no-uniqueness / full pixel features (paper's ablation);
-* ``spatial``: distance, relative position, support and containment questions from the
-  ground-truth scene graph, answered from the 3D map and from a single RGB-D frame (2.5D).
+* ``spatial``: questions for the eight spatial comparators from the ground-truth scene graph in
+  many phrasings, read by the spatial-question parser and answered from the 3D map and from a
+  single RGB-D frame (2.5D).
 
-``regression`` is a small pinned episode suite with per-agent success floors, run in CI.
+The regression suites (``regression-rearrange`` and ``regression-search`` with the privileged
+oracle perception pinned, ``regression-rearrange-embedded`` with the shipped embedded tower) pin
+the first episodes of the shipped files and hold every built-in agent to a success floor (the
+random agents to a ceiling), run in CI. Floors, ceilings and each agent's episode count are not
+set here: they are derived by :mod:`harness.runner.floors` from recorded calibration runs over
+other episodes of the same generators (``calibration_file``) and read from :data:`FLOORS_FILE`.
 """
 
 from __future__ import annotations
@@ -26,10 +35,40 @@ from __future__ import annotations
 from dataclasses import dataclass, field
 from pathlib import Path
 
+import json
+
+from conceptfusion.errors import HarnessError
 from conceptfusion.names import lookup
 from sim_envs.scenes.episodes import SCENES_ROOT
 
-__all__ = ["Suite", "SUITES", "get_suite", "DEFAULT_SUITES"]
+__all__ = ["Suite", "SUITES", "get_suite", "DEFAULT_SUITES", "suite_encoder", "FLOORS_FILE", "calibrated_bounds"]
+
+FLOORS_FILE = Path(__file__).resolve().parents[1] / "data" / "floors" / "floors.json"
+"""The regression suites' floors, ceilings and episode counts, written by
+``python -m harness.runner.floors --calibrate`` (never by hand)."""
+
+
+def calibrated_bounds(name: str, path: Path = FLOORS_FILE) -> dict:
+    """``floors``, ``ceilings``, ``agent_limits`` and ``limit`` of regression suite ``name`` as
+    :data:`FLOORS_FILE` records them (Suite keyword arguments); empty when the file or the suite
+    is missing there (the suite is then not calibrated, which the floor check refuses).
+
+    Raises:
+        HarnessError: the file is not valid floors JSON.
+    """
+    if not path.is_file():
+        return {}
+    try:
+        agents = json.loads(path.read_text())["suites"].get(name, {}).get("agents", {})
+        floors = {a: float(b["value"]) for a, b in agents.items() if b["bound"] == "floor"}
+        ceilings = {a: float(b["value"]) for a, b in agents.items() if b["bound"] == "ceiling"}
+        limits = {a: int(b["episodes"]) for a, b in agents.items()}
+    except (ValueError, KeyError, TypeError, AttributeError) as exc:
+        raise HarnessError(f"{path}: not a floors file written by python -m harness.runner.floors --calibrate "
+                           f"({type(exc).__name__}: {exc}); regenerate it") from exc
+    if not agents:
+        return {}
+    return {"floors": floors, "ceilings": ceilings, "agent_limits": limits, "limit": max(limits.values())}
 
 
 @dataclass(frozen=True)
@@ -50,11 +89,23 @@ class Suite:
     limit: int | None = None
     """Use only the first ``limit`` episodes (None: all)."""
     floors: dict = field(default_factory=dict)
-    """Agent -> minimum success rate (regression suites)."""
+    """Agent -> minimum success rate (regression suites; from :data:`FLOORS_FILE`)."""
+    ceilings: dict = field(default_factory=dict)
+    """Agent -> maximum success rate (regression suites, random agents: a broken success
+    function shows as a random agent succeeding; from :data:`FLOORS_FILE`)."""
+    agent_limits: dict = field(default_factory=dict)
+    """Agent -> how many of the first episodes it runs, instead of ``limit`` (regression suites:
+    each agent's count from the power computation of :mod:`harness.runner.floors`)."""
+    calibration_file: Path | None = None
+    """Episodes the suite's floors are calibrated on (regression suites): same generators and
+    settings, none of the suite's own episodes."""
     encoder: str | None = None
     """Perception pinned by the suite (None: the run's ``--encoder``). The regression suites pin
     the privileged ``oracle`` so that their floors guard planning and control; perception has its
     own checks (the map suites)."""
+    default_encoder: str = "embedded"
+    """Perception when the run names none: the shipped tower trained for the suite's world
+    (``embedded`` for the v1 world, ``embedded-v2`` for the object library's)."""
 
 
 SUITES: dict[str, Suite] = {
@@ -71,7 +122,7 @@ SUITES: dict[str, Suite] = {
             "tabletop rearrangement on library tabletops (evaluation seeds): goals named by name, synonym, attribute or function",
             task="tabletop_rearrange", episodes_file=SCENES_ROOT / "tabletop-v2" / "episodes-v2.jsonl",
             agents=("map-pusher", "frame-pusher", "random-pusher"),
-            env_kwargs={"width": 160, "height": 120, "scan_frames": 8},
+            env_kwargs={"width": 160, "height": 120, "scan_frames": 8}, default_encoder="embedded-v2",
         ),
         Suite(
             "search", "episodes", "object search in apartments: stop within 1 m of the described object",
@@ -84,22 +135,36 @@ SUITES: dict[str, Suite] = {
             "object search in library-filled apartments (evaluation seeds): goals named by name, synonym, attribute or function",
             task="object_search", episodes_file=SCENES_ROOT / "household-v2" / "episodes-v2.jsonl",
             agents=("map-navigator", "frame-searcher", "random-walker"),
-            env_kwargs={"width": 160, "height": 120},
+            env_kwargs={"width": 160, "height": 120}, default_encoder="embedded-v2",
         ),
         Suite("query", "maps", "text, image and click query localisation over fused tabletop maps (3D mIoU, detection accuracy)"),
+        Suite("query-open", "maps",
+              "open-vocabulary text queries over fused v2 tabletop maps: name, synonym, parent, colour, material, function, "
+              "absent; split seen / held-out instance / held-out category (3D mIoU, accuracy at IoU 0.25, found rate)",
+              default_encoder="embedded-v2"),
         Suite("ablation", "maps", "pixel-feature ablation: global only, local only, no uniqueness, full (mAcc, f-mIoU)"),
         Suite("spatial", "maps", "spatial questions from the scene graph: 3D map vs single RGB-D frame"),
         Suite(
-            "regression-rearrange", "episodes", "pinned tabletop episodes with success floors, oracle perception (CI)",
+            "regression-rearrange", "episodes", "pinned tabletop episodes with calibrated success floors, oracle perception (CI)",
             task="tabletop_rearrange", episodes_file=SCENES_ROOT / "tabletop" / "episodes-v1.jsonl",
-            agents=("map-pusher", "frame-pusher", "random-pusher"), env_kwargs={"width": 128, "height": 96, "scan_frames": 6},
-            limit=6, floors={"map-pusher": 0.66, "frame-pusher": 0.33, "random-pusher": 0.0}, encoder="oracle",
+            agents=("map-pusher", "frame-pusher", "random-pusher", "oracle-pusher"),
+            env_kwargs={"width": 128, "height": 96, "scan_frames": 6}, encoder="oracle",
+            calibration_file=SCENES_ROOT / "calibration" / "tabletop-episodes-v1.jsonl", **calibrated_bounds("regression-rearrange"),
         ),
         Suite(
-            "regression-search", "episodes", "pinned household search episodes with success floors, oracle perception (CI)",
+            "regression-rearrange-embedded", "episodes",
+            "pinned tabletop episodes with calibrated success floors, the shipped embedded perception (CI)",
+            task="tabletop_rearrange", episodes_file=SCENES_ROOT / "tabletop" / "episodes-v1.jsonl",
+            agents=("map-pusher", "frame-pusher"), env_kwargs={"width": 128, "height": 96, "scan_frames": 6}, encoder="embedded",
+            calibration_file=SCENES_ROOT / "calibration" / "tabletop-episodes-v1.jsonl",
+            **calibrated_bounds("regression-rearrange-embedded"),
+        ),
+        Suite(
+            "regression-search", "episodes", "pinned household search episodes with calibrated success floors, oracle perception (CI)",
             task="object_search", episodes_file=SCENES_ROOT / "household" / "episodes-v1.jsonl",
-            agents=("map-navigator", "frame-searcher", "random-walker"), env_kwargs={"width": 160, "height": 120},
-            limit=4, floors={"map-navigator": 0.75, "frame-searcher": 0.0, "random-walker": 0.0}, encoder="oracle",
+            agents=("map-navigator", "frame-searcher", "random-walker", "oracle-searcher"),
+            env_kwargs={"width": 160, "height": 120}, encoder="oracle",
+            calibration_file=SCENES_ROOT / "calibration" / "search-episodes-v1.jsonl", **calibrated_bounds("regression-search"),
         ),
     )
 }
@@ -107,6 +172,12 @@ SUITES: dict[str, Suite] = {
 
 DEFAULT_SUITES = ("query", "ablation", "spatial", "rearrange", "search")
 """What ``cfharness run`` runs with no ``--suite``."""
+
+
+def suite_encoder(suite: Suite, run_encoder: str | None) -> str:
+    """The perception a suite runs with: its pinned encoder, else the run's ``--encoder``, else
+    the suite's default (the shipped tower of its world)."""
+    return suite.encoder or run_encoder or suite.default_encoder
 
 
 def get_suite(name: str) -> Suite:

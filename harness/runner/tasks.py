@@ -4,7 +4,10 @@ This is the only place that joins an environment and an agent. :class:`EpisodeJo
 :class:`~harness.runner.jobs.Job`: picklable, and ``job.run()`` (or :func:`run_episode`) returns
 its result record (see :mod:`harness.runner.results`). It never raises for what happens inside
 the episode: an exception becomes ``status="failed"`` with the error, so a broken agent cannot
-stop a run.
+stop a run. A job with ``record`` other than ``"none"`` and an ``out_dir`` follows the episode
+with an :class:`~harness.replay.record.EpisodeRecorder` and writes its recording into
+``out_dir/replays/`` (every episode, or only the failed ones); the recorder only reads, so the
+episode's metrics are the same with recording on or off.
 """
 
 from __future__ import annotations
@@ -13,16 +16,29 @@ import time
 import traceback
 import zlib
 from dataclasses import dataclass, field
+from pathlib import Path
 from typing import Any, Callable
 
 import numpy as np
 
 from agents.registry import AGENTS, make_agent
+from harness.replay.record import EpisodeRecorder
+from harness.report.paths import REPLAYS_DIR, replay_stem
 from harness.runner.jobs import import_plugins, job_record
 from harness.runner.results import agent_label
 from sim_envs.scenes.episodes import Episode
 
-__all__ = ["EpisodeJob", "run_episode", "episode_seed", "TASK_RUNNERS", "close_cached_envs"]
+__all__ = ["EpisodeJob", "EXPECTED_EPISODE_S", "run_episode", "episode_seed", "episode_recorder", "TASK_RUNNERS", "close_cached_envs"]
+
+
+EXPECTED_EPISODE_S: dict[tuple[str, str | None], float] = {
+    ("object_search", "map-navigator"): 20.0, ("object_search", "frame-searcher"): 16.0,
+    ("object_search", "oracle-searcher"): 1.0, ("object_search", "random-walker"): 0.4, ("object_search", None): 10.0,
+    ("tabletop_rearrange", "map-pusher"): 3.0, ("tabletop_rearrange", "frame-pusher"): 1.1,
+    ("tabletop_rearrange", "oracle-pusher"): 0.5, ("tabletop_rearrange", "random-pusher"): 0.5, ("tabletop_rearrange", None): 2.0,
+}
+"""Rough seconds per episode by (task, agent), ``None`` for any other agent (measured with two
+workers on two cores); only their order matters: it decides which jobs start first."""
 
 
 @dataclass(frozen=True)
@@ -42,6 +58,10 @@ class EpisodeJob:
     """Wall-clock limit of the episode (every backend; see :mod:`harness.runner.backends`)."""
     plugins: tuple[str, ...] = ()
     """Modules to import before the agent is built (they register user agents)."""
+    record: str = "none"
+    """Episode recording: ``"failures"``, ``"all"`` or ``"none"`` (see :mod:`harness.replay.record`)."""
+    out_dir: str | None = None
+    """Run folder (absolute) whose ``replays/`` receives the recording; None: nothing is recorded."""
 
     @property
     def encoder(self) -> str:
@@ -50,6 +70,12 @@ class EpisodeJob:
     @property
     def label(self) -> str:
         return f"{agent_label(self.agent, self.agent_kwargs)} {self.episode.episode_id}"
+
+    @property
+    def expected_s(self) -> float:
+        """Rough length of the episode in seconds (:data:`EXPECTED_EPISODE_S`): the backends
+        start the longest jobs first."""
+        return EXPECTED_EPISODE_S.get((self.task, self.agent), EXPECTED_EPISODE_S.get((self.task, None), 1.0))
 
     def key_record(self) -> dict:
         """The fields that identify this episode's record (see :func:`harness.runner.results.record_key`)."""
@@ -104,7 +130,8 @@ def _rearrange_env(kwargs: dict):
     return TabletopRearrangeEnv(**kwargs)
 
 
-def _rollout(env, agent, job: EpisodeJob, *, on_step: Callable[[dict, dict], None] | None = None):
+def _rollout(env, agent, job: EpisodeJob, *, on_step: Callable[[dict, dict], None] | None = None,
+             recorder: EpisodeRecorder | None = None):
     t_env = t_agent = 0.0
     t0 = time.perf_counter()
     obs, info = env.reset(seed=job.seed, options={"episode": job.episode})
@@ -113,26 +140,41 @@ def _rollout(env, agent, job: EpisodeJob, *, on_step: Callable[[dict, dict], Non
     privileged = bool(getattr(agent, "privileged", False))
     if on_step:
         on_step(obs, info)
+    if recorder:
+        recorder.begin(env, obs, info)
     steps = 0
     while True:
         t0 = time.perf_counter()
         action = agent.act(obs, info if privileged else None)
         t1 = time.perf_counter()
+        if recorder:
+            recorder.act(action)
+        t1r = time.perf_counter()
         obs, reward, terminated, truncated, info = env.step(action)
         t2 = time.perf_counter()
         t_agent += t1 - t0
-        t_env += t2 - t1
+        t_env += t2 - t1r
         steps += 1
         if on_step:
             on_step(obs, info)
+        if recorder:
+            recorder.step(obs, reward, info)
         if terminated or truncated:
             return info, steps, {"env_s": t_env, "agent_s": t_agent}
 
 
-def _run_search(job: EpisodeJob, agent) -> tuple[dict, dict, str | None, dict]:
+def _description(job: EpisodeJob) -> dict:
+    """How the episode's first goal is named (v2 episodes): ``{"description_kind": ...}``, or
+    nothing when the episode does not record it."""
+    goal = job.episode.goals[0] if job.episode.goals else None
+    return {"description_kind": goal.description_kind} if goal is not None and goal.description_kind else {}
+
+
+def _run_search(job: EpisodeJob, agent, recorder: EpisodeRecorder | None = None) -> tuple[dict, dict, str | None, dict]:
     env = _cached_env(("object_search", tuple(sorted(job.env_kwargs.items()))), lambda: _search_env(job.env_kwargs))
     path: list[list[float]] = []
-    info, steps, timings = _rollout(env, agent, job, on_step=lambda o, i: path.append([round(float(v), 3) for v in o["base_pose"][:2]]))
+    info, steps, timings = _rollout(env, agent, job, on_step=lambda o, i: path.append([round(float(v), 3) for v in o["base_pose"][:2]]),
+                                    recorder=recorder)
     box = env.unwrapped.goal_box
     goal = env.unwrapped.scene.object(job.episode.goals[0].object_id)
     metrics = {
@@ -143,13 +185,14 @@ def _run_search(job: EpisodeJob, agent) -> tuple[dict, dict, str | None, dict]:
     extras = {
         "path_xy": path, "start_xy": path[0] if path else None,
         "goal_xy": [round(float(v), 3) for v in (box[0, :2] + box[1, :2]) / 2], "scene": job.episode.scene,
+        **_description(job),
     }
     return metrics, timings, goal.category, extras
 
 
-def _run_rearrange(job: EpisodeJob, agent) -> tuple[dict, dict, str | None, dict]:
+def _run_rearrange(job: EpisodeJob, agent, recorder: EpisodeRecorder | None = None) -> tuple[dict, dict, str | None, dict]:
     env = _cached_env(("tabletop_rearrange", tuple(sorted(job.env_kwargs.items()))), lambda: _rearrange_env(job.env_kwargs))
-    info, steps, timings = _rollout(env, agent, job)
+    info, steps, timings = _rollout(env, agent, job, recorder=recorder)
     ev = info.get("evaluation", {})
     scene = env.unwrapped.sim.scene
     category = scene.object(job.episode.goals[0].object_id).category if job.episode.goals else None
@@ -157,14 +200,27 @@ def _run_rearrange(job: EpisodeJob, agent) -> tuple[dict, dict, str | None, dict
     for key in ("targets_on_side", "max_distractor_shift", "targets_done_fraction"):
         if isinstance(ev.get(key), (int, float, bool)):
             metrics[key] = ev[key]
-    return metrics, timings, category, {"scene": job.episode.scene}
+    return metrics, timings, category, {"scene": job.episode.scene, **_description(job)}
 
 
-TASK_RUNNERS: dict[str, Callable[[EpisodeJob, Any], tuple[dict, dict, str | None, dict]]] = {
+TASK_RUNNERS: dict[str, Callable[..., tuple[dict, dict, str | None, dict]]] = {
     "object_search": _run_search,
     "tabletop_rearrange": _run_rearrange,
 }
-"""Per task: (job, agent) -> (metrics, timings, goal category, extras)."""
+"""Per task: (job, agent, recorder=None) -> (metrics, timings, goal category, extras); the
+recorder (an :class:`~harness.replay.record.EpisodeRecorder` or None) follows the rollout."""
+
+
+def episode_recorder(job: EpisodeJob, agent=None) -> EpisodeRecorder | None:
+    """The recorder of ``job``'s episode (writing ``out_dir/replays/<stem>.npz``, see
+    :func:`harness.report.paths.replay_stem`), or None when the job records nothing."""
+    if job.record == "none" or not job.out_dir:
+        return None
+    key = job.key_record()
+    header = {**key, "run_id": job.run_id, "agent_label": agent_label(job.agent, job.agent_kwargs),
+              "scene": job.episode.scene, "instruction": job.episode.instruction}
+    path = Path(job.out_dir) / REPLAYS_DIR / f"{replay_stem(key)}.npz"
+    return EpisodeRecorder(job.task, header, path, mode=job.record, agent=agent)
 
 
 def run_episode(job: EpisodeJob) -> dict:
@@ -174,12 +230,14 @@ def run_episode(job: EpisodeJob) -> dict:
     be caught in-process: on the process backend it is recorded as ``failed`` (the worker died)."""
     t0 = time.perf_counter()
     status, error, metrics, timings, category, extras = "ok", None, {}, {}, None, {}
+    recorder = None
     try:
         if job.task not in TASK_RUNNERS:
             raise ValueError(f"task: expected one of {sorted(TASK_RUNNERS)}, got {job.task!r}")
         import_plugins(job.plugins)
         agent = make_agent(job.agent, **job.agent_kwargs)
-        metrics, timings, category, extras = TASK_RUNNERS[job.task](job, agent)
+        recorder = episode_recorder(job, agent)
+        metrics, timings, category, extras = TASK_RUNNERS[job.task](job, agent, recorder)
         spec = AGENTS.get(job.agent)
         extras["uses_map"] = bool(spec.uses_map) if spec else None
         extras["privileged"] = bool(getattr(agent, "privileged", False))
@@ -197,6 +255,9 @@ def run_episode(job: EpisodeJob) -> dict:
     except BaseException:  # JobTimeout (serial backend), KeyboardInterrupt: clean up, let it through
         close_cached_envs()
         raise
+    if recorder is not None:
+        recorder.finish(status=status, metrics=metrics, error=error)
+        timings = {**timings, "record_s": recorder.seconds}
     timings = {**timings, "wall_s": time.perf_counter() - t0}
     return job_record(
         job, status=status, error=error,

@@ -37,10 +37,13 @@ def _cli(capsys, tmp_path, *args) -> tuple[int, str, Path]:
 # -- every setting is checked, with the flag, what was expected, what arrived, nearest names ----
 
 @pytest.mark.parametrize("kwargs, match", [
-    ({"encoder": "embeded"}, r"^--encoder: unknown encoder 'embeded'; did you mean 'embedded'\?"),
+    ({"encoder": "embeded"}, r"^--encoder: unknown encoder 'embeded'; did you mean 'embedded', 'embedded-v2'\?"),
     ({"seed": -1}, r"^--seed: expected an integer >= 0 \(the episode seed\), got -1$"),
     ({"seed": "abc"}, r"^--seed: expected an integer >= 0 .*got 'abc'$"),
     ({"seed": True}, r"^--seed: expected an integer >= 0 .*got bool True$"),
+    ({"seeds": 0}, r"^--seeds: expected an integer >= 1 \(seeds per episode\), got 0$"),
+    ({"seeds": "three"}, r"^--seeds: expected an integer >= 1 .*got 'three'$"),
+    ({"seeds": 1.5}, r"^--seeds: expected an integer >= 1 .*got float 1.5$"),
     ({"limit": -148}, r"^--limit: expected an integer >= 1 \(episodes or scenes per suite\), got -148$"),
     ({"limit": 0}, r"^--limit: expected an integer >= 1 .*got 0$"),
     ({"limit": 2.5}, r"^--limit: expected an integer >= 1 .*got float 2.5$"),
@@ -137,7 +140,7 @@ def test_a_user_agent_takes_the_options_its_signature_names(tmp_path, monkeypatc
 # -- the command line: exit 2, one line on stderr, nothing written ----------------------------
 
 @pytest.mark.parametrize("args, line", [
-    (["--encoder", "embeded"], "cfharness run: --encoder: unknown encoder 'embeded'; did you mean 'embedded'?"),
+    (["--encoder", "embeded"], "cfharness run: --encoder: unknown encoder 'embeded'; did you mean 'embedded', 'embedded-v2'?"),
     (["--agent-option", "max_pushes=-5"], "cfharness run: --agent-option max_pushes=-5: agent 'random-pusher' option "
                                           "'max_pushes': expected an integer >= 1, got '-5'"),
     (["--agent-option", "bogus=1"], "cfharness run: --agent-option bogus: no agent or suite of this run takes it"),

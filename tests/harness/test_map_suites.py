@@ -9,15 +9,13 @@ import pytest
 
 from harness.maps.ablation import segmentation_scores
 from harness.maps.query import iou
-from harness.maps.scan import load_shipped_scene, point_labels, scan_scene
-from harness.maps.spatial import QUESTION_TYPES, distance_ok, generate_questions
+from harness.maps.scan import load_shipped_scene, point_labels
 from harness.runner.backends import run_jobs
 from harness.runner.map_jobs import MapJob, map_suite_jobs, run_map_job
 from harness.runner.results import record_key
 from harness.runner.run import RunConfig
 
 TABLETOP = "tabletop-0111"
-HOUSEHOLD = "household-0000"
 
 
 def _job(suite, agent, encoder, scene, tmp_path=None, **options):
@@ -72,27 +70,6 @@ def test_ablation_full_beats_global_with_ground_truth_masks():
     assert all(r["status"] == "ok" for r in recs.values())
     assert recs["full"]["metrics"]["macc"] > recs["global"]["metrics"]["macc"]
     assert recs["full"]["task"] == "map_ablation" and recs["full"]["extras"]["privileged"] is True
-
-
-def test_question_generation_gives_every_type():
-    scene = load_shipped_scene(HOUSEHOLD)
-    scan = scan_scene(scene, frames=24, width=160, height=120)
-    qs = generate_questions(scan, seed=0)
-    assert {q["type"] for q in qs} == set(QUESTION_TYPES)
-    assert qs == generate_questions(scan, seed=0)
-    assert all(isinstance(q["gt"], bool) for q in qs if q["type"] != "distance")
-    assert any(q["gt"] is True for q in qs if q["type"] == "support") and any(q["gt"] is False for q in qs if q["type"] == "support")
-
-
-def test_spatial_3d_map_answers_at_least_as_well_as_a_single_frame():
-    opts = {"frames": 24, "width": 160, "height": 120}
-    recs = {a: run_map_job(_job("spatial", a, "oracle", HOUSEHOLD, **opts))[0] for a in ("map-3d", "frame-2.5d")}
-    m3, m25 = recs["map-3d"]["metrics"], recs["frame-2.5d"]["metrics"]
-    assert recs["map-3d"]["task"] == "spatial_qa"
-    assert m3["accuracy"] >= m25["accuracy"]
-    assert m3["notfound_rate"] <= m25["notfound_rate"]
-    dist = [q for q in recs["map-3d"]["extras"]["questions"] if q["type"] == "distance"]
-    assert dist and sum(distance_ok(q["answer"], q["gt"]) for q in dist) >= 0.75 * len(dist)
 
 
 def test_jobs_per_suite_and_bad_names():

@@ -29,11 +29,13 @@ def _outcome(rec: dict) -> tuple:
 
 
 def test_regression_suites_meet_their_floors(tmp_path):
-    """The CI regression suite: every default agent of both tasks (map-equipped and map-free)
-    runs full episodes headless, each is scored, and no agent falls below its floor."""
-    suites = ("regression-rearrange", "regression-search")
-    records = run_suites(RunConfig(suites=suites, backend="serial"), tmp_path, progress=False)
-    expected = sum(len(get_suite(s).agents) * get_suite(s).limit for s in suites)
+    """The CI regression gate: every built-in agent of both tasks (map-equipped, map-free,
+    random and privileged) runs its pinned episodes headless, with oracle perception and with
+    the embedded one, each is scored, and none falls below its calibrated floor or rises above
+    its ceiling (:mod:`harness.runner.floors`)."""
+    suites = ("regression-rearrange", "regression-rearrange-embedded", "regression-search")
+    records = run_suites(RunConfig(suites=suites, backend="process", workers=2), tmp_path, progress=False)
+    expected = sum(sum(get_suite(s).agent_limits.values()) for s in suites)
     assert len(records) == expected
     assert all(r["status"] == "ok" for r in records), [r["error"] for r in records if r["status"] != "ok"]
     for r in records:
@@ -51,8 +53,9 @@ def test_regression_suites_meet_their_floors(tmp_path):
 
 def test_floors_catch_an_agent_below_them():
     suite = get_suite("regression-rearrange")
-    rec = {"suite": suite.name, "agent": "map-pusher", "metrics": {"success": False}}
-    assert _check_floors([rec] * 6, (suite.name,)) == 1
+    recs = [{"suite": suite.name, "agent": "map-pusher", "episode_id": f"e{i}", "seed": 0, "status": "ok",
+             "metrics": {"success": False}} for i in range(suite.agent_limits["map-pusher"])]
+    assert _check_floors(recs, (suite.name,), agents=("map-pusher",)) == 1
 
 
 @pytest.mark.parametrize("suite, agent", [("regression-rearrange", "map-pusher"), ("regression-search", "map-navigator")])

@@ -12,8 +12,6 @@ from dataclasses import dataclass
 
 import numpy as np
 from numba import njit
-from scipy.sparse import coo_matrix
-from scipy.sparse.csgraph import connected_components
 
 from conceptfusion.perception.masks.base import empty_masks
 from conceptfusion.perception.masks.rgbd_config import RGBDProposerConfig
@@ -90,33 +88,106 @@ def merge_levels(fine, count, src, dst, weight, thresholds):
     mean weight at most the threshold are joined (connected components of such pairs),
     repeatedly until no pair qualifies; the result is the next level. Levels are nested.
     A mean over the whole boundary is robust to the few weak edges that let pixel-level
-    merging leak between objects.
+    merging leak between objects. A boundary's mean sums its pixel edges in edge order, and
+    the joined regions are numbered by their first region of the previous level.
 
     Shape:
         ``fine`` (n,) int, edges (E,) -> ``labels`` (L, n) int64, ``counts`` (L,) int64.
     """
+    fine = np.asarray(fine, np.int64)
     cross = fine[src] != fine[dst]
-    bs, bd, bw = src[cross], dst[cross], weight[cross].astype(np.float64)
-    levels, counts = [fine], [count]
-    lab, m = fine, count
+    fa, fb, bw = fine[src[cross]], fine[dst[cross]], weight[cross].astype(np.float64)
+    levels, counts = [fine], [int(count)]
+    region = np.arange(int(count), dtype=np.int64)  # fine region -> region of the current level
+    m = int(count)
     for t in thresholds:
-        while True:
-            a, b = lab[bs], lab[bd]
-            keep = a != b
-            lo, hi = np.minimum(a, b)[keep], np.maximum(a, b)[keep]
-            if len(lo) == 0:
-                break
-            pairs, inv = np.unique(lo * m + hi, return_inverse=True)
-            mean = np.bincount(inv, weights=bw[keep]) / np.bincount(inv)
-            join = mean <= t
-            if not join.any():
-                break
-            graph = coo_matrix((np.ones(int(join.sum())), (pairs[join] // m, pairs[join] % m)), shape=(m, m))
-            m, comp = connected_components(graph, directed=False)
-            lab = comp.astype(np.int64)[lab]
-        levels.append(lab)
+        region, m = _merge_level(region, m, fa, fb, bw, float(t))
+        levels.append(region[fine])
         counts.append(m)
     return np.stack(levels), np.asarray(counts, np.int64)
+
+
+_HASH_MULTIPLIER = -7046029254386353131
+"""0x9E3779B97F4A7C15 (Fibonacci hashing) as a signed 64-bit integer."""
+
+
+@njit(cache=True, nogil=True)
+def _pair_slots(codes, k):
+    """Open-addressing table of the distinct values among ``codes[:k]`` (non-negative): the
+    slot of each code and the table of keys (-1: empty). Shape: (k,) int64, (T,) int64."""
+    size = 16
+    while size < 2 * k:
+        size *= 2
+    keys = np.full(size, -1, np.int64)
+    slot = np.empty(k, np.int64)
+    mask = size - 1
+    for e in range(k):
+        c = codes[e]
+        h = (c * _HASH_MULTIPLIER) & mask
+        while keys[h] != -1 and keys[h] != c:
+            h = (h + 1) & mask
+        keys[h] = c
+        slot[e] = h
+    return slot, keys
+
+
+@njit(cache=True, nogil=True)
+def _merge_level(region, m, fa, fb, bw, t):
+    """One level of :func:`merge_levels`: join adjacent regions while some boundary's mean
+    weight is at most ``t``.
+
+    Shape:
+        ``region`` (m0,) int64 current region of each fine region, ``fa``, ``fb`` (B,) fine
+        regions on the two sides of each cross edge, ``bw`` (B,) float64 -> the new
+        ``region`` (m0,) and region count.
+    """
+    nb = fa.shape[0]
+    codes = np.empty(nb, np.int64)
+    eidx = np.empty(nb, np.int64)
+    while True:
+        k = 0
+        for e in range(nb):
+            a = region[fa[e]]
+            b = region[fb[e]]
+            if a != b:
+                codes[k] = min(a, b) * m + max(a, b)
+                eidx[k] = e
+                k += 1
+        if k == 0:
+            break
+        slot, keys = _pair_slots(codes, k)
+        total = np.zeros(keys.shape[0])
+        count = np.zeros(keys.shape[0], np.int64)
+        for i in range(k):  # each boundary sums its edges in edge order
+            total[slot[i]] += bw[eidx[i]]
+            count[slot[i]] += 1
+        parent = np.arange(m)
+        joined = False
+        for h in range(keys.shape[0]):
+            if keys[h] >= 0 and total[h] / count[h] <= t:
+                joined = True
+                ra = _find(parent, keys[h] // m)
+                rb = _find(parent, keys[h] % m)
+                if ra != rb:
+                    if ra < rb:
+                        parent[rb] = ra
+                    else:
+                        parent[ra] = rb
+        if not joined:
+            break
+        new_id = np.full(m, -1, np.int64)
+        comp = np.empty(m, np.int64)
+        n_comp = 0
+        for i in range(m):  # components numbered by their first region, as scipy's connected_components does
+            r = _find(parent, i)
+            if new_id[r] < 0:
+                new_id[r] = n_comp
+                n_comp += 1
+            comp[i] = new_id[r]
+        for i in range(region.shape[0]):
+            region[i] = comp[region[i]]
+        m = n_comp
+    return region, m
 
 
 @dataclass(frozen=True)
@@ -131,33 +202,81 @@ class _RegionStats:
     normal: np.ndarray
 
 
-def _plane_stats(lab, m, p, valid, tol) -> _RegionStats:
+def _plane_stats(lab, m, p, valid, cfg: RGBDProposerConfig, n: int) -> _RegionStats:
     """Per-region area, valid-pixel count, plane fit, inlier fraction and extent (metres).
 
     A plane is fitted to each region's valid points (least squares from moments), refitted
-    to the points within ``2 tol`` of it, and the inlier fraction is the share of valid
-    points within ``tol`` of the refit. The extent is the full length of a uniform spread
-    with the variance along the region's principal axis.
+    to the points within ``2 plane_tol_m`` of it, and the inlier fraction is the share of
+    valid points within ``plane_tol_m`` of the refit. The extent is the full length of a
+    uniform spread with the variance along the region's principal axis.
+
+    Only regions that can be background planes are fitted (enough valid pixels and area for
+    the extent, and large or wide enough for the refit); the others keep zeros there, which
+    no rule of :func:`select_regions` reads.
 
     Shape:
         ``lab`` (n,) int, ``p`` (n, 3) with zeros where invalid, ``valid`` (n,).
     """
+    tol = cfg.plane_tol_m
+    lab = np.asarray(lab, np.int64)
     area = np.bincount(lab, minlength=m).astype(np.float64)
     mom = _moments(lab, m, p, valid)
     nv = mom[:, 0].copy()
-    mean, normal, eig = _planes_from_moments(mom)
+    frac = area / n
+    fit = (nv >= cfg.min_valid_fraction * area) & (frac >= cfg.min_area_fraction)
+    mean, normal, eig = _planes_from_moments(mom, fit)
     extent = np.sqrt(12.0 * eig[:, 2])
-    near = valid & (_plane_distance(lab, p, mean, normal) <= 2.0 * tol)
-    mean, normal, _ = _planes_from_moments(_moments(lab, m, p, near))
-    inlier = valid & (_plane_distance(lab, p, mean, normal) <= tol)
-    inliers = np.bincount(lab, weights=inlier.astype(np.float64), minlength=m)
-    inlier_frac = np.where(nv >= 3, inliers / np.maximum(nv, 1.0), 0.0)
+    refit = fit & ((frac >= cfg.background_min_fraction) | (extent >= cfg.background_min_extent_m))
+    if not refit.any():
+        return _RegionStats(area, nv, np.zeros(m), extent, mean, normal)
+    mean, normal, _ = _planes_from_moments(_near_moments(lab, m, p, valid, refit, mean, normal, 2.0 * tol), refit)
+    inliers = _near_counts(lab, m, p, valid, refit, mean, normal, tol)
+    inlier_frac = np.where(refit & (nv >= 3), inliers / np.maximum(nv, 1.0), 0.0)
     return _RegionStats(area, nv, inlier_frac, extent, mean, normal)
 
 
 def _plane_distance_to(p, mean_3, normal_3):
     """Distance of every point from one plane. Shape: (n, 3) -> (n,)."""
     return np.abs((p - mean_3) @ normal_3)
+
+
+def _pixels_on_plane(p, valid, mean_3, normal_3, tol):
+    """``valid & (_plane_distance_to(p, mean_3, normal_3) <= tol)``, in one compiled pass.
+
+    The matrix product's rounding is the BLAS library's own (its order of the three terms,
+    fused multiply-adds or not); the compiled pass rounds its own way and knows how far
+    apart two roundings can be. Only when some point lies that close to ``tol`` (about
+    1e-17 m for points metres away) does the answer depend on it; the product is then taken
+    as before.
+
+    Shape:
+        ``p`` (n, 3) float64, ``valid`` (n,) bool, (3,), (3,) -> (n,) bool.
+    """
+    on, ambiguous = _plane_pixels_kernel(p, valid, np.ascontiguousarray(mean_3, np.float64),
+                                         np.ascontiguousarray(normal_3, np.float64), float(tol))
+    if ambiguous:
+        return valid & (_plane_distance_to(p, mean_3, normal_3) <= tol)
+    return on
+
+
+@njit(cache=True, nogil=True)
+def _plane_pixels_kernel(p, valid, mean, normal, tol):
+    """Points of ``valid`` within ``tol`` of the plane, and whether one lies within rounding
+    distance of ``tol`` (twice the error bound of a three-term dot product, 2 * 3.4e-16 times
+    the sum of the terms' magnitudes, rounded up to 1e-15)."""
+    n = p.shape[0]
+    on = np.zeros(n, np.bool_)
+    for i in range(n):
+        if not valid[i]:
+            continue
+        a = (p[i, 0] - mean[0]) * normal[0]
+        b = (p[i, 1] - mean[1]) * normal[1]
+        c = (p[i, 2] - mean[2]) * normal[2]
+        d = abs((a + b) + c)
+        if abs(d - tol) <= 1e-15 * (abs(a) + abs(b) + abs(c)):
+            return on, True
+        on[i] = d <= tol
+    return on, False
 
 
 @njit(cache=True, nogil=True)
@@ -187,27 +306,68 @@ def _moments(lab, m, p, use):
 
 
 @njit(cache=True, nogil=True)
-def _plane_distance(lab, p, mean, normal):
-    """Distance of each point from its region's plane. Shape: (n,) float64."""
-    out = np.empty(lab.shape[0])
+def _near_moments(lab, m, p, valid, which, mean, normal, lim):
+    """:func:`_moments` of the valid points within ``lim`` of their region's plane (distance
+    ``|(p - mean) . normal|``, summed x, y, z in that order), for the regions ``which``
+    (zeros for the others).
+
+    Shape:
+        (n,), m, (n, 3), (n,), (m,) bool, (m, 3), (m, 3), float -> (m, 10).
+    """
+    out = np.zeros((m, 10))
     for i in range(lab.shape[0]):
         r = lab[i]
-        out[i] = abs(
-            (p[i, 0] - mean[r, 0]) * normal[r, 0] + (p[i, 1] - mean[r, 1]) * normal[r, 1] + (p[i, 2] - mean[r, 2]) * normal[r, 2]
-        )
+        if not (valid[i] and which[r]):
+            continue
+        x, y, z = p[i, 0], p[i, 1], p[i, 2]
+        if not abs((x - mean[r, 0]) * normal[r, 0] + (y - mean[r, 1]) * normal[r, 1] + (z - mean[r, 2]) * normal[r, 2]) <= lim:
+            continue
+        out[r, 0] += 1.0
+        out[r, 1] += x
+        out[r, 2] += y
+        out[r, 3] += z
+        out[r, 4] += x * x
+        out[r, 5] += x * y
+        out[r, 6] += x * z
+        out[r, 7] += y * y
+        out[r, 8] += y * z
+        out[r, 9] += z * z
     return out
 
 
-def _planes_from_moments(mom):
-    """Least-squares plane per region: centroid (m, 3), unit normal (m, 3), covariance
-    eigenvalues (m, 3) ascending."""
-    cnt = np.maximum(mom[:, 0], 1.0)
-    mean = mom[:, 1:4] / cnt[:, None]
-    sxx, sxy, sxz, syy, syz, szz = (mom[:, 4 + i] / cnt for i in range(6))
+@njit(cache=True, nogil=True)
+def _near_counts(lab, m, p, valid, which, mean, normal, lim):
+    """Per region of ``which``, the number of valid points within ``lim`` of its plane (the
+    distance of :func:`_near_moments`; zeros for the other regions). Shape: (m,) float64."""
+    out = np.zeros(m)
+    for i in range(lab.shape[0]):
+        r = lab[i]
+        if not (valid[i] and which[r]):
+            continue
+        if abs((p[i, 0] - mean[r, 0]) * normal[r, 0] + (p[i, 1] - mean[r, 1]) * normal[r, 1]
+               + (p[i, 2] - mean[r, 2]) * normal[r, 2]) <= lim:
+            out[r] += 1.0
+    return out
+
+
+def _planes_from_moments(mom, which):
+    """Least-squares plane of the regions ``which``: centroid (m, 3), unit normal (m, 3),
+    covariance eigenvalues (m, 3) ascending; zeros for the other regions (each region's
+    eigendecomposition is its own LAPACK call, so fitting a subset changes no value)."""
+    m = mom.shape[0]
+    mean, vec, eig = np.zeros((m, 3)), np.zeros((m, 3, 3)), np.zeros((m, 3))
+    if not which.any():
+        return mean, vec[:, :, 0], eig
+    mo = mom[which]
+    cnt = np.maximum(mo[:, 0], 1.0)
+    mean[which] = mo[:, 1:4] / cnt[:, None]
+    mu = mean[which]
+    sxx, sxy, sxz, syy, syz, szz = (mo[:, 4 + i] / cnt for i in range(6))
     second = np.stack([sxx, sxy, sxz, sxy, syy, syz, sxz, syz, szz], axis=1).reshape(-1, 3, 3)
-    cov = second - mean[:, :, None] * mean[:, None, :]
-    eig, vec = np.linalg.eigh(cov)
-    return mean, vec[:, :, 0], np.clip(eig, 0.0, None)
+    cov = second - mu[:, :, None] * mu[:, None, :]
+    e, v = np.linalg.eigh(cov)
+    vec[which], eig[which] = v, np.clip(e, 0.0, None)
+    return mean, vec[:, :, 0], eig
 
 
 def select_regions(labels, counts, pts, valid, cfg: RGBDProposerConfig, h: int, w: int):
@@ -220,10 +380,11 @@ def select_regions(labels, counts, pts, valid, cfg: RGBDProposerConfig, h: int, 
     """
     n = h * w
     p = np.where(valid[:, None], pts, 0.0).astype(np.float64)
-    stats = [_plane_stats(labels[li], int(counts[li]), p, valid, cfg.plane_tol_m) for li in range(len(counts))]
+    stats = [_plane_stats(labels[li], int(counts[li]), p, valid, cfg, n) for li in range(len(counts))]
     # Background planes first, over all levels. A pixel within tolerance of one is background,
     # wherever it lies: fragments of the floor cut off by the table still belong to the floor.
     plane_masks, plane_levels, planar = [], [], []
+    plane_pixels: dict[bytes, np.ndarray] = {}
     for li, st in enumerate(stats):
         frac = st.area / n
         is_plane = (
@@ -234,7 +395,11 @@ def select_regions(labels, counts, pts, valid, cfg: RGBDProposerConfig, h: int, 
         )
         planar.append(is_plane)
         for r in np.flatnonzero(is_plane):
-            on = valid & (_plane_distance_to(p, st.mean[r], st.normal[r]) <= cfg.plane_tol_m)
+            # A region unchanged across levels has the same plane: its pixels are computed once.
+            key = st.mean[r].tobytes() + st.normal[r].tobytes()
+            on = plane_pixels.get(key)
+            if on is None:
+                on = plane_pixels[key] = _pixels_on_plane(p, valid, st.mean[r], st.normal[r], cfg.plane_tol_m)
             if not any(_iou(on, q) >= cfg.dedupe_iou for q in plane_masks):
                 plane_masks.append(on)
                 plane_levels.append(li)
@@ -286,11 +451,30 @@ def _duplicates(lab_a, m_a, area_a, kept_a, lab_b, m_b, area_b, iou_th):
     Shape:
         labels (n,), counts, areas (m_a,), (m_b,), kept (m_a,) bool -> (m_b,) bool.
     """
-    codes = lab_a.astype(np.int64) * m_b + lab_b
-    pairs, inter = np.unique(codes, return_counts=True)
-    ia, ib = pairs // m_b, pairs % m_b
-    iou = inter / (area_a[ia] + area_b[ib] - inter)
-    hit = kept_a[ia] & (iou >= iou_th)
-    dup = np.zeros(m_b, bool)
-    dup[ib[hit]] = True
+    return _duplicates_kernel(np.asarray(lab_a, np.int64), np.asarray(area_a, np.float64), np.asarray(kept_a, np.bool_),
+                              np.asarray(lab_b, np.int64), int(m_b), np.asarray(area_b, np.float64), float(iou_th))
+
+
+@njit(cache=True, nogil=True)
+def _duplicates_kernel(lab_a, area_a, kept_a, lab_b, m_b, area_b, iou_th):
+    """:func:`_duplicates` on the pixels of kept regions of level a: intersection counts of
+    (a, b) region pairs in a hash table."""
+    n = lab_a.shape[0]
+    codes = np.empty(n, np.int64)
+    k = 0
+    for i in range(n):
+        a = lab_a[i]
+        if kept_a[a]:
+            codes[k] = a * m_b + lab_b[i]
+            k += 1
+    slot, keys = _pair_slots(codes, k)
+    inter = np.zeros(keys.shape[0], np.int64)
+    for i in range(k):
+        inter[slot[i]] += 1
+    dup = np.zeros(m_b, np.bool_)
+    for h in range(keys.shape[0]):
+        if keys[h] >= 0:
+            ia, ib = keys[h] // m_b, keys[h] % m_b
+            if inter[h] / (area_a[ia] + area_b[ib] - inter[h]) >= iou_th:
+                dup[ib] = True
     return dup

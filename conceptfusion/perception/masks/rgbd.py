@@ -45,7 +45,8 @@ The result is a pure function of the inputs (no randomness, no threading).
 
 from __future__ import annotations
 
-import math
+import hashlib
+from collections import OrderedDict
 from dataclasses import fields
 
 import cv2
@@ -53,6 +54,7 @@ import numpy as np
 
 from conceptfusion.cameras import backproject
 from conceptfusion.perception.masks.base import check_frame, empty_masks
+from conceptfusion.perception.masks.pixel_graph import edge_aware_normals, edge_weights, stable_order
 from conceptfusion.perception.masks.regions import felzenszwalb, merge_levels, select_regions
 from conceptfusion.perception.masks.rgbd_config import RGBDProposerConfig
 
@@ -73,11 +75,17 @@ class RGBDProposer:
 
     privileged = False
 
+    cache_frames = 4
+    """The last frames whose masks are remembered (keyed by the settings and the frame's
+    pixels, depth and intrinsics): a robot standing still proposes once. Exact: the result is
+    a pure function of the settings and the frame."""
+
     def __init__(self, config: RGBDProposerConfig | None = None, **overrides) -> None:
         base = config if config is not None else RGBDProposerConfig()
         if not isinstance(base, RGBDProposerConfig):
             raise TypeError(f"config: expected RGBDProposerConfig, got {type(base).__name__}")
         self.config = RGBDProposerConfig(**{**{f.name: getattr(base, f.name) for f in fields(base)}, **overrides})
+        self._recent: OrderedDict[bytes, tuple[np.ndarray, np.ndarray]] = OrderedDict()
 
     def propose(self, rgb_hw3, depth_hw, K_33) -> np.ndarray:
         """Masks of one frame (see :class:`conceptfusion.perception.masks.base.MaskProposer`).
@@ -95,8 +103,24 @@ class RGBDProposer:
         Shape:
             as :meth:`propose` -> ``masks_rhw`` (R, H, W) bool, ``level_r`` (R,) int64.
         """
-        cfg = self.config
         rgb, depth, K = check_frame(rgb_hw3, depth_hw, K_33)
+        digest = hashlib.blake2b(repr(self.config).encode(), digest_size=20)
+        for arr in (rgb, depth, K):
+            digest.update(str(arr.shape).encode())
+            digest.update(np.ascontiguousarray(arr).data)
+        key = digest.digest()
+        if key in self._recent:
+            self._recent.move_to_end(key)
+        else:
+            self._recent[key] = self._segment(rgb, depth, K)
+            while len(self._recent) > self.cache_frames:
+                self._recent.popitem(last=False)
+        masks, level = self._recent[key]
+        return masks.copy(), level.copy()
+
+    def _segment(self, rgb, depth, K) -> tuple[np.ndarray, np.ndarray]:
+        """:meth:`segment` of a checked frame (uint8 image, float32 depth with NaN where invalid, float64 K)."""
+        cfg = self.config
         h, w = depth.shape
         n = h * w
         with np.errstate(invalid="ignore"):
@@ -108,8 +132,8 @@ class RGBDProposer:
         if not valid.any():
             return empty_masks(h, w), np.zeros(0, np.int64)
         vertex = backproject(depth, K)
-        src, dst, weight = _edges(rgb, depth, vertex, _edge_aware_normals(vertex), valid, cfg)
-        order = np.argsort(weight, kind="stable")
+        src, dst, weight = _edges(rgb, depth, vertex, edge_aware_normals(vertex), valid, cfg)
+        order = stable_order(weight)
         k = cfg.fine_scale * (n / _REF_PIXELS)
         min_size = max(1, int(round(cfg.min_area_fraction * n)))
         fine, count = felzenszwalb(src[order], dst[order], weight[order], n, k, min_size)
@@ -118,90 +142,17 @@ class RGBDProposer:
 
 
 def _edges(rgb, depth, vertex, normals, valid, cfg: RGBDProposerConfig):
-    """Right and down 4-neighbour edges with their combined weights.
+    """Right and down 4-neighbour edges with their combined weights (the colour cue's CIELAB
+    image and the inverse depth here, the per-edge costs in
+    :func:`~conceptfusion.perception.masks.pixel_graph.edge_weights`).
 
     Shape:
         (H, W, 3), (H, W), vertex and normals (H, W, 3), (H, W) -> src (E,), dst (E,) int64,
         weight (E,) float32.
     """
-    h, w = depth.shape
     img = rgb.astype(np.float32) / 255.0
     if cfg.blur_sigma > 0:
         img = cv2.GaussianBlur(img, (0, 0), cfg.blur_sigma)
     lab = cv2.cvtColor(img, cv2.COLOR_RGB2Lab)
-    lab_weight = np.array([cfg.lightness_weight, 1.0, 1.0], np.float32)
     inv = np.where(valid, 1.0 / np.where(valid, depth, 1.0), np.nan).astype(np.float32)
-    cos_tol = math.cos(math.radians(cfg.normal_tol_deg))
-    idx = np.arange(h * w, dtype=np.int64).reshape(h, w)
-    srcs, dsts, weights = [], [], []
-    for axis in (1, 0):  # right neighbours, then down neighbours
-        a = [slice(None), slice(None)]
-        b = [slice(None), slice(None)]
-        a[axis], b[axis] = slice(None, -1), slice(1, None)
-        a, b = tuple(a), tuple(b)
-        color = np.linalg.norm((lab[a] - lab[b]) * lab_weight, axis=-1) / cfg.color_scale
-        depth_cost = _inverse_depth_jump(inv, axis) / cfg.depth_tol
-        with np.errstate(invalid="ignore"):
-            dot = np.sum(normals[a] * normals[b], axis=-1)
-            convex = np.sum((normals[a] - normals[b]) * (vertex[a] - vertex[b]), axis=-1) > 0
-        normal_cost = np.nan_to_num((1.0 - dot) / (1.0 - cos_tol), nan=0.0)
-        normal_cost = np.where(convex, cfg.convex_weight * normal_cost, normal_cost)
-        geo = np.minimum(np.nan_to_num(depth_cost, nan=0.0), cfg.max_term) + np.minimum(normal_cost, cfg.max_term)
-        both = valid[a] & valid[b]
-        one = valid[a] ^ valid[b]
-        geo = np.where(both, geo, np.where(one, 2.0 * cfg.max_term, 0.0))
-        weights.append((np.minimum(color, cfg.max_term) + geo).astype(np.float32).ravel())
-        srcs.append(idx[a].ravel())
-        dsts.append(idx[b].ravel())
-    return np.concatenate(srcs), np.concatenate(dsts), np.concatenate(weights)
-
-
-def _edge_aware_normals(vertex_hw3: np.ndarray) -> np.ndarray:
-    """Unit normals from one-sided differences, each axis taking the side with the smaller
-    depth change, so pixels next to an occluding edge keep their own surface's normal.
-
-    Orientation is irrelevant here (only ``n_p . n_q`` and convexity use them, both
-    invariant to flipping both normals; a consistent sign is kept by facing the camera).
-    NaN where no valid neighbour exists on either side along an axis.
-
-    Shape:
-        (H, W, 3) -> (H, W, 3) float32.
-    """
-    v = vertex_hw3.astype(np.float32)
-    tangents = []
-    for axis in (1, 0):
-        d = np.diff(v, axis=axis)
-        pad = np.full_like(np.take(d, [0], axis=axis), np.nan)
-        fwd = np.concatenate([d, pad], axis=axis)
-        bwd = np.concatenate([pad, d], axis=axis)
-        with np.errstate(invalid="ignore"):
-            use_bwd = np.isnan(fwd[..., 2]) | (np.abs(bwd[..., 2]) < np.abs(fwd[..., 2]))
-        tangents.append(np.where(use_bwd[..., None], bwd, fwd))
-    n = np.cross(tangents[0], tangents[1])
-    with np.errstate(invalid="ignore", divide="ignore"):
-        n = n / np.linalg.norm(n, axis=-1, keepdims=True)
-        flip = np.sum(n * v, axis=-1, keepdims=True) > 0
-    return np.where(flip, -n, n).astype(np.float32)
-
-
-def _inverse_depth_jump(inv_hw: np.ndarray, axis: int) -> np.ndarray:
-    """Relative departure of each neighbour step of inverse depth from the adjacent steps.
-
-    For pixels ``p``, ``q`` along ``axis`` with steps ``s_prev`` (into ``p``), ``s`` (p to
-    q) and ``s_next`` (out of ``q``): ``min(|s - s_prev|, |s - s_next|) / mean(inv_p,
-    inv_q)``, using whichever adjacent steps exist (``|s|`` when neither does). Zero on
-    any plane, large at occluding edges. NaN where ``p`` or ``q`` is invalid.
-
-    Shape:
-        (H, W) -> (H, W-1) for axis 1, (H-1, W) for axis 0.
-    """
-    x = inv_hw if axis == 1 else inv_hw.T
-    s = np.diff(x, axis=1)  # (H, W-1)
-    pad = np.full((x.shape[0], 1), np.nan, x.dtype)
-    prev = np.concatenate([pad, s[:, :-1]], axis=1)
-    nxt = np.concatenate([s[:, 1:], pad], axis=1)
-    with np.errstate(invalid="ignore"):
-        dev = np.fmin(np.abs(s - prev), np.abs(s - nxt))
-        dev = np.where(np.isnan(prev) & np.isnan(nxt), np.abs(s), dev)
-        rel = dev / (0.5 * (x[:, :-1] + x[:, 1:]))
-    return rel if axis == 1 else rel.T
+    return edge_weights(lab, inv, vertex, normals, valid, cfg)

@@ -1,0 +1,234 @@
+"""Projective data association, compiled (numba) and split over threads.
+
+For each map point, project into the new frame; if it lands on a valid pixel ``j`` within
+``sqrt(dist_th2)`` of that pixel's vertex with normals agreeing (``dot >= cos_th``), it is a
+candidate for ``j``. Per pixel the candidate with the highest confidence wins, ties to the
+nearest, then to the lowest point index. A valid pixel with no candidate is *covered* when
+the nearest point projecting onto one of its 8 neighbours passes the same tests.
+
+The points are scanned in ranges (:func:`scan`), on several threads for large maps, and the
+partial results merged (:func:`merge_scans`) so that the outcome is exactly that of one scan
+in point order: a range's best candidate replaces the earlier ranges' only if strictly
+better, and the nearest-point bookkeeping, which keeps depths rounded to float32, is merged
+by the exact minimum depth each range saw (see :func:`merge_scans`).
+"""
+
+from __future__ import annotations
+
+import numpy as np
+from numba import njit
+
+from conceptfusion.map._threads import map_ranges
+
+__all__ = ["associate"]
+
+_PROJECT_BLOCK = 2048
+_THREAD_CHUNK = 1 << 16  # fewest points per thread
+
+
+def associate(geo, n, world_to_cam, K, valid_pix, verts, nrms, dist_th2, cos_th, h, w):
+    """Match the first ``n`` map points (rows of ``geo``: position 0:3, normal 3:6, confidence
+    9) with the frame's valid pixels (flat pixel ``valid_pix[j]``, vertex ``verts[j]``, normal
+    ``nrms[j]``).
+
+    Returns ``(points, pixels, covered)``: matched map point indices and valid-pixel indices,
+    (M,) int64 in increasing point order (a point wins at most one pixel), and (V,) bool over
+    the valid pixels.
+    """
+    pixel_to_valid = pixel_index(valid_pix, h, w)
+    parts = map_ranges(
+        lambda start, stop: scan(geo, start, stop, world_to_cam, K, pixel_to_valid, verts, nrms, dist_th2, cos_th, h, w),
+        n,
+        min_chunk=_THREAD_CHUNK,
+    )
+    acc = parts[0]
+    for part in parts[1:]:
+        merge_scans(*acc, *part)
+    best_pt, _, _, near_pt, _, _ = acc
+    return finish(geo, n, best_pt, near_pt, valid_pix, verts, nrms, dist_th2, cos_th, h, w)
+
+
+@njit(cache=True, nogil=True)
+def pixel_index(valid_pix, h, w):
+    """Valid-pixel number of each flat pixel (-1: not valid), (h * w,) int32."""
+    out = np.full(h * w, -1, np.int32)
+    for j in range(valid_pix.shape[0]):
+        out[valid_pix[j]] = j
+    return out
+
+
+@njit(cache=True, nogil=True, error_model="numpy")
+def _project(geo, start, stop, world_to_cam, K, h, w, idx_out, pix_out, z_out):
+    """Points ``start:stop`` of ``geo`` that land in the ``h x w`` frame in front of the camera.
+
+    Writes their indices, flat pixels ``v * w + u`` (``u, v`` the rounded projection) and
+    camera depths to the front of ``idx_out``, ``pix_out``, ``z_out``; returns how many, in
+    point order. Positions are copied block-wise into contiguous buffers so that the
+    projection runs branch-free over SIMD lanes; the arithmetic, and so every rounding, is
+    that of a plain per-point loop.
+    """
+    r00, r01, r02, t0 = world_to_cam[0, 0], world_to_cam[0, 1], world_to_cam[0, 2], world_to_cam[0, 3]
+    r10, r11, r12, t1 = world_to_cam[1, 0], world_to_cam[1, 1], world_to_cam[1, 2], world_to_cam[1, 3]
+    r20, r21, r22, t2 = world_to_cam[2, 0], world_to_cam[2, 1], world_to_cam[2, 2], world_to_cam[2, 3]
+    fx, s, cx, fy, cy = K[0, 0], K[0, 1], K[0, 2], K[1, 1], K[1, 2]
+    fw = np.float64(w)
+    fh = np.float64(h)
+    xs = np.empty(_PROJECT_BLOCK, np.float64)
+    ys = np.empty(_PROJECT_BLOCK, np.float64)
+    zs = np.empty(_PROJECT_BLOCK, np.float64)
+    qs = np.empty(_PROJECT_BLOCK, np.int32)
+    zcs = np.empty(_PROJECT_BLOCK, np.float64)
+    m = 0
+    for block in range(start, stop, _PROJECT_BLOCK):
+        cnt = min(_PROJECT_BLOCK, stop - block)
+        for i in range(cnt):
+            xs[i] = geo[block + i, 0]
+            ys[i] = geo[block + i, 1]
+            zs[i] = geo[block + i, 2]
+        for i in range(cnt):
+            x = xs[i]
+            y = ys[i]
+            z = zs[i]
+            zc = r20 * x + r21 * y + r22 * z + t2
+            xc = (r00 * x + r01 * y + r02 * z + t0) / zc
+            yc = (r10 * x + r11 * y + r12 * z + t1) / zc
+            u = np.rint(fx * xc + s * yc + cx)
+            v = np.rint(fy * yc + cy)
+            inside = (zc > 0.0) & (u >= 0.0) & (u < fw) & (v >= 0.0) & (v < fh)
+            q = np.int32(min(max(v, 0.0), fh)) * np.int32(w) + np.int32(min(max(u, 0.0), fw))
+            qs[i] = q if inside else -1
+            zcs[i] = zc
+        for i in range(cnt):
+            if qs[i] >= 0:
+                idx_out[m] = block + i
+                pix_out[m] = qs[i]
+                z_out[m] = zcs[i]
+                m += 1
+    return m
+
+
+@njit(cache=True, nogil=True, inline="always")
+def _compatible(geo, k, verts, nrms, j, dist_th2, cos_th):
+    """Map point ``k`` and frame vertex ``j`` are within the distance and angle thresholds."""
+    dx = geo[k, 0] - verts[j, 0]
+    dy = geo[k, 1] - verts[j, 1]
+    dz = geo[k, 2] - verts[j, 2]
+    if dx * dx + dy * dy + dz * dz >= dist_th2:
+        return False
+    return geo[k, 3] * nrms[j, 0] + geo[k, 4] * nrms[j, 1] + geo[k, 5] * nrms[j, 2] >= cos_th
+
+
+@njit(cache=True, nogil=True)
+def scan(geo, start, stop, world_to_cam, K, pixel_to_valid, verts, nrms, dist_th2, cos_th, h, w):
+    """Candidates among points ``start:stop``, in point order.
+
+    Returns ``(best_pt, best_conf, best_d2, near_pt, near_z, near_min)``: per valid pixel the
+    winning candidate (-1: none), its confidence and squared distance, (V,); per pixel the
+    nearest point projecting onto it (-1: none), its depth as kept (float32), and the exact
+    smallest depth seen (float64), (h * w,).
+    """
+    num_valid = verts.shape[0]
+    count = stop - start
+    idx = np.empty(count, np.int32)
+    pix = np.empty(count, np.int32)
+    zc = np.empty(count, np.float64)
+    m = _project(geo, start, stop, world_to_cam, K, h, w, idx, pix, zc)
+    best_pt = np.full(num_valid, -1, np.int32)
+    best_conf = np.zeros(num_valid, np.float32)
+    best_d2 = np.zeros(num_valid, np.float32)
+    near_pt = np.full(h * w, -1, np.int32)
+    near_z = np.full(h * w, np.inf, np.float32)
+    near_min = np.full(h * w, np.inf, np.float64)
+    for i in range(m):
+        k = idx[i]
+        q = pix[i]
+        z = zc[i]
+        if z < near_z[q]:
+            near_z[q] = z
+            near_pt[q] = k
+        if z < near_min[q]:
+            near_min[q] = z
+        j = pixel_to_valid[q]
+        if j < 0:
+            continue
+        if not _compatible(geo, k, verts, nrms, j, dist_th2, cos_th):
+            continue
+        dx = geo[k, 0] - verts[j, 0]
+        dy = geo[k, 1] - verts[j, 1]
+        dz = geo[k, 2] - verts[j, 2]
+        d2 = dx * dx + dy * dy + dz * dz
+        c = geo[k, 9]
+        if best_pt[j] < 0 or c > best_conf[j] or (c == best_conf[j] and d2 < best_d2[j]):
+            best_pt[j] = k
+            best_conf[j] = c
+            best_d2[j] = d2
+    return best_pt, best_conf, best_d2, near_pt, near_z, near_min
+
+
+@njit(cache=True, nogil=True)
+def merge_scans(best_pt, best_conf, best_d2, near_pt, near_z, near_min,
+                b_pt, b_conf, b_d2, b_near_pt, b_near_z, b_near_min):
+    """Fold the scan of a later range (``b_*``) into an earlier one, in place.
+
+    A later candidate wins only when strictly better (higher confidence, or equal and
+    nearer), as in one scan. The nearest point: one scan keeps ``near_z`` rounded to float32
+    and replaces it only by a strictly smaller exact depth; if the later range saw a depth
+    below the earlier range's kept one, its first such point would have replaced it, and from
+    there on the single scan would have followed the later range's own record, so the later
+    range's result stands; otherwise the earlier one does.
+    """
+    for j in range(best_pt.shape[0]):
+        b = b_pt[j]
+        if b >= 0 and (best_pt[j] < 0 or b_conf[j] > best_conf[j] or (b_conf[j] == best_conf[j] and b_d2[j] < best_d2[j])):
+            best_pt[j] = b
+            best_conf[j] = b_conf[j]
+            best_d2[j] = b_d2[j]
+    for q in range(near_pt.shape[0]):
+        if b_near_min[q] < near_z[q]:
+            near_pt[q] = b_near_pt[q]
+            near_z[q] = b_near_z[q]
+        if b_near_min[q] < near_min[q]:
+            near_min[q] = b_near_min[q]
+
+
+@njit(cache=True, nogil=True)
+def finish(geo, n, best_pt, near_pt, valid_pix, verts, nrms, dist_th2, cos_th, h, w):
+    """Matches ordered by point and the covered flags of the unmatched pixels (see module)."""
+    num_valid = verts.shape[0]
+    covered = np.zeros(num_valid, np.bool_)
+    m = 0
+    for j in range(num_valid):
+        if best_pt[j] >= 0:
+            m += 1
+            continue
+        qv = valid_pix[j] // w
+        qu = valid_pix[j] - qv * w
+        for dv in range(-1, 2):
+            vv = qv + dv
+            if vv < 0 or vv >= h:
+                continue
+            for du in range(-1, 2):
+                uu = qu + du
+                if uu < 0 or uu >= w:
+                    continue
+                k = near_pt[vv * w + uu]
+                if k >= 0 and _compatible(geo, k, verts, nrms, j, dist_th2, cos_th):
+                    covered[j] = True
+                    break
+            if covered[j]:
+                break
+    # Matches in point order (each point wins at most one pixel), so that merging walks the
+    # point arrays forwards instead of jumping around them.
+    match = np.full(n, -1, np.int32)
+    for j in range(num_valid):
+        if best_pt[j] >= 0:
+            match[best_pt[j]] = j
+    pts = np.empty(m, np.int64)
+    pixels = np.empty(m, np.int64)
+    i = 0
+    for k in range(n):
+        if match[k] >= 0:
+            pts[i] = k
+            pixels[i] = match[k]
+            i += 1
+    return pts, pixels, covered

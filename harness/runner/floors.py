@@ -1,0 +1,504 @@
+"""Regression floors with statistical power, derived from recorded calibration runs.
+
+A regression suite (:mod:`harness.runner.suites`: ``regression-rearrange``,
+``regression-rearrange-embedded``, ``regression-search``) pins the first episodes of a shipped
+episode file and holds every built-in agent to a *floor* on its success rate (the random agents
+to a *ceiling*: a broken success function shows as a random agent succeeding). No floor is set by
+hand: this module derives each one from a recorded **calibration run**, the same agents with the
+same settings (environment size, scan frames, pinned perception, seed) over *other* episodes drawn
+from the same generators (the suite's ``calibration_file``, ``scenes/calibration/``, made by
+``python -m scenes.make_calibration``; not one of them is a regression episode, so a floor is
+never fitted to the episodes it checks).
+
+**Procedure** (:func:`derive_bound`), for an agent that succeeded on ``k`` of ``m`` calibration
+episodes, calibrated rate ``p = k / m``, confidence ``1 - a`` (:data:`CONFIDENCE`, a = 0.05):
+
+- *Floor* for ``n`` regression episodes: the largest count ``c`` with ``P(Bin(n, p) < c) <= a``;
+  the floor is ``c / n`` and the check fails when the run's rate is below it. Equivalently, the
+  check fails exactly when the exact one-sided ``1 - a`` Clopper-Pearson upper bound of the run's
+  success rate falls below the calibrated rate ``p``: the run shows, at that confidence, that the
+  agent got worse than calibrated (:func:`clopper_pearson`; the test suite checks the two agree).
+- *Ceiling* (random agents): the smallest ``c`` with ``P(Bin(n, p) > c) <= a``; the check fails
+  when the rate is above ``c / n`` (the Clopper-Pearson lower bound of the run's rate rises above
+  ``p``).
+- *Power* (:func:`detection_probability`): the exact binomial probability that the check fails
+  when the agent's true rate has dropped by :data:`DROP` (15 points) from ``p`` (a ceiling: risen by
+  15 points), ``P(Bin(n, p - 0.15) < c)``. The episode count ``n`` is the smallest that reaches
+  :data:`POWER` (80%) and whose bound can fail at all (``c >= 1`` for a floor, ``c < n`` for a
+  ceiling), within the suite's CI budget :data:`MAX_EPISODES` and the episodes its file holds;
+  where the target needs more, ``n`` is the smallest count with the highest detection
+  probability the budget allows, and that probability is recorded (``power_met`` false) instead
+  of being claimed. An agent that almost never succeeds cannot be given a floor that can fail
+  on few episodes: at a calibrated rate ``p`` even a floor of one success needs ``n`` with
+  ``(1 - p)^n <= a`` (149 episodes at p = 0.02, 299 at p = 0.01). ``frame-searcher`` (oracle
+  perception, 1 of 100 calibration episodes) is such an agent: its floor is 0 (``can_fail`` false) and it runs one
+  pinned episode, which guards only against crashes (the check fails any crashed episode,
+  ``harness.commands``), not against it finding goals less often.
+- *False alarms*: ``false_alarm`` is the probability that an unchanged agent whose true rate is
+  exactly ``p`` fails the check (at most ``a`` by construction); ``false_alarm_expected`` averages
+  it over what the calibration leaves uncertain about the rate (Jeffreys posterior
+  Beta(k + 1/2, m - k + 1/2), i.e. the beta-binomial predictive of the regression count), so it
+  is the chance that a calibration plus a regression run of an unchanged agent disagree; it is
+  larger than ``a`` because ``p`` is itself an estimate from ``m`` episodes.
+
+All of it is exact binomial (or beta-binomial) arithmetic from :mod:`scipy.stats`, never a
+normal approximation. The regression episodes are pinned and the agents deterministic, so a run
+of unchanged code always gives the same verdict: a false alarm, if one happened, would show the
+day the floors were calibrated, not at random later.
+
+**Files.** The calibration records (``harness/data/floors/<suite>.jsonl``, results records as
+the runner writes them, less the per-step ``extras.path_xy`` traces) and the floors
+(:data:`~harness.runner.suites.FLOORS_FILE`, read by the suites) are written only by::
+
+    python -m harness.runner.floors --calibrate [--suite NAME ...]   # run, then write records + floors
+    python -m harness.runner.floors --check                          # recompute from the records, compare
+
+``--check`` recomputes every bound from the committed records with this code, checks that the
+records cover every agent and calibration episode with the suite's current settings, and exits 1
+when anything differs from the committed floors file.
+"""
+
+from __future__ import annotations
+
+import argparse
+import dataclasses
+import json
+import sys
+import uuid
+from dataclasses import dataclass
+from pathlib import Path
+
+from scipy import stats
+
+from conceptfusion.errors import HarnessError
+from conceptfusion.io_utils import atomic_write_text
+from conceptfusion.names import unknown_name_error
+from harness.report.stats import metric_value
+from harness.runner.backends import run_jobs
+from harness.runner.results import append_record, completed_keys, latest_records, load_results, record_key
+from harness.runner.run import RunConfig, episode_jobs
+from harness.runner.suites import FLOORS_FILE, SUITES, Suite, suite_encoder
+from sim_envs.scenes.episodes import SCENES_ROOT, load_episodes
+
+__all__ = [
+    "CONFIDENCE", "DROP", "POWER", "MAX_EPISODES", "CEILING_AGENTS", "FLOORS_FORMAT", "FLOORS_VERSION", "RECORDS_DIR",
+    "Bound", "floor_count", "ceiling_count", "detection_probability", "false_alarm_probability",
+    "expected_false_alarm", "clopper_pearson", "derive_bound", "regression_suites", "calibration_suite",
+    "records_file", "load_calibration", "derive_suite", "derive_floors", "calibrate", "check", "main",
+]
+
+CONFIDENCE = 0.95
+"""Confidence of the one-sided binomial bounds: an agent at its calibrated rate fails its check
+with probability at most ``1 - CONFIDENCE``."""
+DROP = 0.15
+"""The change in success rate (15 points) that the check must catch with probability :data:`POWER`."""
+POWER = 0.80
+"""Target probability of catching a drop of :data:`DROP` (a rise, for a ceiling)."""
+MAX_EPISODES = {"regression-rearrange": 100, "regression-rearrange-embedded": 100, "regression-search": 50}
+"""Most pinned episodes an agent may run per regression suite (CI budget, and for search all the
+shipped episodes): the power computation chooses within it."""
+CEILING_AGENTS = frozenset({"random-pusher", "random-walker"})
+"""Agents held to a ceiling instead of a floor."""
+FLOORS_FORMAT = "cf-floors"
+FLOORS_VERSION = 1
+RECORDS_DIR = FLOORS_FILE.parent
+"""Folder of the committed calibration records and the floors file."""
+_DROPPED_EXTRAS = ("path_xy",)
+"""Per-step traces left out of the committed records (the outcome fields are kept whole)."""
+
+
+# ------------------------------------------------------------------------------ the statistics
+def _check_counts(k: int, n: int, what: str = "successes") -> None:
+    for name, v in ((what, k), ("n", n)):
+        if isinstance(v, bool) or not isinstance(v, int):
+            raise TypeError(f"{name}: expected an int, got {type(v).__name__} {v!r}")
+    if n < 1 or not 0 <= k <= n:
+        raise ValueError(f"expected 0 <= {what} <= n and n >= 1, got {what}={k}, n={n}")
+
+
+def _check_rate(p: float) -> None:
+    if not (isinstance(p, (int, float)) and not isinstance(p, bool) and 0.0 <= p <= 1.0):
+        raise ValueError(f"rate: expected a number in [0, 1], got {p!r}")
+
+
+def floor_count(rate: float, n: int, confidence: float = CONFIDENCE) -> int:
+    """The largest ``c`` in ``0..n`` with ``P(Bin(n, rate) < c) <= 1 - confidence``: a run of ``n``
+    episodes fails a floor when it has fewer than ``c`` successes."""
+    _check_rate(rate)
+    _check_counts(0, n)
+    alpha = 1.0 - confidence
+    c = 0
+    while c < n and stats.binom.cdf(c, n, rate) <= alpha:  # P(K <= c) = P(K < c + 1)
+        c += 1
+    return c
+
+
+def ceiling_count(rate: float, n: int, confidence: float = CONFIDENCE) -> int:
+    """The smallest ``c`` in ``0..n`` with ``P(Bin(n, rate) > c) <= 1 - confidence``: a run of ``n``
+    episodes fails a ceiling when it has more than ``c`` successes."""
+    _check_rate(rate)
+    _check_counts(0, n)
+    alpha = 1.0 - confidence
+    c = 0
+    while c < n and stats.binom.sf(c, n, rate) > alpha:  # sf(c) = P(K > c)
+        c += 1
+    return c
+
+
+def _fails(kind: str, count: int, n: int, rate: float) -> float:
+    """P(the check fails) for a true rate ``rate``, exact binomial."""
+    if kind == "floor":
+        return float(stats.binom.cdf(count - 1, n, rate)) if count > 0 else 0.0
+    return float(stats.binom.sf(count, n, rate))
+
+
+def detection_probability(kind: str, count: int, n: int, rate: float, drop: float = DROP) -> float:
+    """Probability that the check (``kind`` ``"floor"`` or ``"ceiling"`` at ``count`` of ``n``)
+    fails when the true rate has moved ``drop`` from ``rate`` the wrong way (down for a floor, up
+    for a ceiling; clipped to [0, 1])."""
+    moved = max(rate - drop, 0.0) if kind == "floor" else min(rate + drop, 1.0)
+    return _fails(kind, count, n, moved)
+
+
+def false_alarm_probability(kind: str, count: int, n: int, rate: float) -> float:
+    """Probability that an agent whose true rate is ``rate`` fails the check."""
+    return _fails(kind, count, n, rate)
+
+
+def expected_false_alarm(kind: str, count: int, n: int, k: int, m: int) -> float:
+    """Probability that an unchanged agent fails the check, averaged over the calibration's
+    uncertainty about its rate (``k`` of ``m``; Jeffreys posterior, beta-binomial predictive)."""
+    a, b = k + 0.5, m - k + 0.5
+    if kind == "floor":
+        return float(stats.betabinom.cdf(count - 1, n, a, b)) if count > 0 else 0.0
+    return float(stats.betabinom.sf(count, n, a, b))
+
+
+def clopper_pearson(k: int, n: int, confidence: float = CONFIDENCE, side: str = "upper") -> float:
+    """One-sided exact (Clopper-Pearson) bound of a binomial rate from ``k`` of ``n``: ``side``
+    ``"upper"`` or ``"lower"``, at ``confidence``."""
+    _check_counts(k, n)
+    alpha = 1.0 - confidence
+    if side == "upper":
+        return 1.0 if k == n else float(stats.beta.ppf(1 - alpha, k + 1, n - k))
+    if side == "lower":
+        return 0.0 if k == 0 else float(stats.beta.ppf(alpha, k, n - k + 1))
+    raise ValueError(f"side: expected 'upper' or 'lower', got {side!r}")
+
+
+@dataclass(frozen=True)
+class Bound:
+    """One agent's floor or ceiling in one regression suite, and how it was derived.
+
+    The check (``harness.commands``) fails when the agent's success rate over its ``episodes``
+    pinned episodes is below ``value`` (a floor) or above it (a ceiling); ``value = count / episodes``.
+    """
+
+    agent: str
+    bound: str
+    """``"floor"`` or ``"ceiling"``."""
+    value: float
+    count: int
+    """Successes at the bound: a floor fails below ``count`` successes, a ceiling above."""
+    episodes: int
+    """Pinned regression episodes the agent runs (the first ``episodes`` of the suite's file)."""
+    calibration_successes: int
+    calibration_episodes: int
+    detection: float
+    """Probability that a drop (rise) of :data:`DROP` from the calibrated rate fails the check."""
+    power_met: bool
+    """Whether ``detection`` reaches :data:`POWER` (False: the CI budget was too small)."""
+    can_fail: bool
+    """Whether any outcome of the run fails the check (a floor of 0 cannot)."""
+    false_alarm: float
+    """P(check fails) for an agent exactly at the calibrated rate (<= 1 - :data:`CONFIDENCE`)."""
+    false_alarm_expected: float
+    """P(check fails) for an unchanged agent, over the calibration's uncertainty (beta-binomial)."""
+
+    @property
+    def calibration_rate(self) -> float:
+        return self.calibration_successes / self.calibration_episodes
+
+    def as_json(self) -> dict:
+        """The floors-file entry (probabilities rounded to 4 digits; ``value`` exact)."""
+        return {
+            "bound": self.bound, "value": self.value, "count": self.count, "episodes": self.episodes,
+            "calibration": {"successes": self.calibration_successes, "episodes": self.calibration_episodes,
+                            "rate": round(self.calibration_rate, 6)},
+            "detection": round(self.detection, 4), "power_met": self.power_met, "can_fail": self.can_fail,
+            "false_alarm": round(self.false_alarm, 4), "false_alarm_expected": round(self.false_alarm_expected, 4),
+        }
+
+
+def derive_bound(agent: str, kind: str, successes: int, episodes: int, max_episodes: int, *,
+                 confidence: float = CONFIDENCE, drop: float = DROP, power: float = POWER) -> Bound:
+    """The bound of ``agent`` from ``successes`` of ``episodes`` calibration episodes (see the
+    module docstring): the smallest regression count ``n <= max_episodes`` whose bound can fail
+    and catches a move of ``drop`` with probability ``power``; where none does, the smallest ``n``
+    with the highest detection probability within the budget (1 when no bound can fail at all:
+    the episode then only shows that the agent runs without crashing)."""
+    if kind not in ("floor", "ceiling"):
+        raise ValueError(f"kind: expected 'floor' or 'ceiling', got {kind!r}")
+    _check_counts(successes, episodes)
+    _check_counts(0, max_episodes)
+    rate = successes / episodes
+    count_at = floor_count if kind == "floor" else ceiling_count
+    chosen, best = None, (-1.0, 0)
+    for n in range(1, max_episodes + 1):
+        c = count_at(rate, n, confidence)
+        can_fail = c >= 1 if kind == "floor" else c < n
+        det = detection_probability(kind, c, n, rate, drop) if can_fail else 0.0
+        if det >= power:
+            chosen = n
+            break
+        best = max(best, (det, -n))
+    n = chosen or -best[1]
+    c = count_at(rate, n, confidence)
+    det = detection_probability(kind, c, n, rate, drop)
+    return Bound(
+        agent=agent, bound=kind, value=c / n, count=c, episodes=n, calibration_successes=successes,
+        calibration_episodes=episodes, detection=det, power_met=det >= power,
+        can_fail=c >= 1 if kind == "floor" else c < n, false_alarm=false_alarm_probability(kind, c, n, rate),
+        false_alarm_expected=expected_false_alarm(kind, c, n, successes, episodes),
+    )
+
+
+# ------------------------------------------------------------------------------ suites and records
+def regression_suites() -> list[Suite]:
+    """The suites with calibrated floors (those naming a ``calibration_file``), in registry order."""
+    return [s for s in SUITES.values() if s.calibration_file is not None]
+
+
+def _regression_suite(name: str) -> Suite:
+    by_name = {s.name: s for s in regression_suites()}
+    if name not in by_name:
+        raise unknown_name_error("regression suite", name, by_name)
+    return by_name[name]
+
+
+def calibration_suite(suite: Suite) -> Suite:
+    """``suite`` over its calibration episodes (all of them), named ``<suite>-calibration``."""
+    if suite.calibration_file is None:
+        raise HarnessError(f"suite {suite.name!r} has no calibration episodes (not a regression suite)")
+    return dataclasses.replace(suite, name=f"{suite.name}-calibration", episodes_file=suite.calibration_file, limit=None,
+                               agent_limits={}, floors={}, ceilings={}, calibration_file=None)
+
+
+def records_file(suite: Suite, folder: Path = RECORDS_DIR) -> Path:
+    """Where the calibration records of ``suite`` are committed."""
+    return Path(folder) / f"{suite.name}.jsonl"
+
+
+def _relative(path: Path) -> str:
+    return Path(path).resolve().relative_to(SCENES_ROOT.resolve()).as_posix()
+
+
+def _settings(suite: Suite) -> dict:
+    """What a calibration must share with the regression run (stored in the floors file)."""
+    return {"episodes_file": _relative(suite.episodes_file), "calibration_file": _relative(suite.calibration_file),
+            "env_kwargs": dict(suite.env_kwargs), "encoder": suite_encoder(suite, None), "seed": 0,
+            "agents": list(suite.agents), "max_episodes": _max_episodes(suite)}
+
+
+def _max_episodes(suite: Suite) -> int:
+    available = len(load_episodes(suite.episodes_file).episodes)
+    return min(MAX_EPISODES.get(suite.name, available), available)
+
+
+def load_calibration(suite: Suite, folder: Path = RECORDS_DIR) -> dict[str, list[bool]]:
+    """Agent -> success per calibration episode (failure policy of :mod:`harness.report.stats`)
+    from the committed records of ``suite``.
+
+    Raises:
+        HarnessError: records missing, or not covering every agent x calibration episode at seed
+            0 with the suite's perception, or holding other episodes.
+    """
+    path = records_file(suite, folder)
+    if not path.is_file():
+        raise HarnessError(f"{path}: no calibration records for suite {suite.name!r}; run "
+                           f"python -m harness.runner.floors --calibrate --suite {suite.name}")
+    records = latest_records(load_results(path, strict=True))
+    expected_ids = [e.episode_id for e in load_episodes(suite.calibration_file).episodes]
+    name = calibration_suite(suite).name
+    encoder = suite_encoder(suite, None)
+    out: dict[str, list[bool]] = {}
+    for agent in suite.agents:
+        mine = {r["episode_id"]: r for r in records if r["agent"] == agent}
+        missing = [e for e in expected_ids if e not in mine]
+        extra = sorted(set(mine) - set(expected_ids))
+        if missing or extra:
+            raise HarnessError(f"{path}: agent {agent!r} has {len(mine)} records; missing calibration episodes "
+                               f"{missing[:3]}{'...' if len(missing) > 3 else ''}, unexpected {extra[:3]}")
+        for r in mine.values():
+            want_encoder = encoder if "encoder" in (r.get("agent_kwargs") or {}) else "none"
+            wrong = [(f, r.get(f), want) for f, want in (("suite", name), ("seed", 0), ("encoder", want_encoder))
+                     if r.get(f) != want]
+            if wrong:
+                raise HarnessError(f"{path}: record of {agent!r} on {r['episode_id']}: " + "; ".join(
+                    f"{f} {got!r}, expected {want!r}" for f, got, want in wrong))
+        out[agent] = [bool(metric_value(mine[e], "success")) for e in expected_ids]
+    others = sorted({r["agent"] for r in records} - set(suite.agents))
+    if others:
+        raise HarnessError(f"{path}: records of agents the suite does not run: {others}")
+    return out
+
+
+def derive_suite(suite: Suite, folder: Path = RECORDS_DIR) -> dict:
+    """The floors-file entry of one regression suite, recomputed from its committed records."""
+    cal = load_calibration(suite, folder)
+    max_n = _max_episodes(suite)
+    agents = {}
+    for agent, outcomes in cal.items():
+        kind = "ceiling" if agent in CEILING_AGENTS else "floor"
+        agents[agent] = derive_bound(agent, kind, sum(outcomes), len(outcomes), max_n).as_json()
+    return {"records": records_file(suite, folder).name, "settings": _settings(suite), "agents": agents}
+
+
+def derive_floors(folder: Path = RECORDS_DIR) -> dict:
+    """The whole floors file, recomputed from the committed calibration records."""
+    return {
+        "format": FLOORS_FORMAT, "version": FLOORS_VERSION,
+        "method": {
+            "confidence": CONFIDENCE, "drop": DROP, "power": POWER, "ceiling_agents": sorted(CEILING_AGENTS),
+            "floor": "largest c with P(Bin(n, p) < c) <= 1 - confidence, p = calibrated rate: fails iff the run's "
+                     "one-sided Clopper-Pearson upper bound is below p",
+            "ceiling": "smallest c with P(Bin(n, p) > c) <= 1 - confidence",
+            "episodes": "smallest n <= max_episodes whose bound can fail and catches a move of `drop` with "
+                        "probability >= power (exact binomial)",
+        },
+        "suites": {s.name: derive_suite(s, folder) for s in regression_suites()},
+    }
+
+
+def _floors_text(data: dict) -> str:
+    return json.dumps(data, indent=1, sort_keys=False) + "\n"
+
+
+def _strip(record: dict) -> dict:
+    extras = {k: v for k, v in (record.get("extras") or {}).items() if k not in _DROPPED_EXTRAS}
+    return {**record, "extras": extras}
+
+
+def _claim_work_dir(work: Path, suites: list[Suite]) -> None:
+    """Record the suites' settings in ``work/calibration.json``; refuse to resume a calibration
+    whose settings differ (its records, keyed without the environment size, would be reused)."""
+    path = work / "calibration.json"
+    stored = json.loads(path.read_text()) if path.is_file() else {}
+    changed = [s.name for s in suites if s.name in stored and stored[s.name] != _settings(s)]
+    if changed:
+        raise HarnessError(f"{work}: the calibration there ran {', '.join(changed)} with other settings "
+                           f"({path}); remove {work} (or those suites' records) to calibrate afresh")
+    atomic_write_text(path, json.dumps({**stored, **{s.name: _settings(s) for s in suites}}, indent=1))
+
+
+def calibrate(suites: list[Suite] | None = None, *, work_dir: str | Path = "runs/floors-calibration",
+              backend: str = "process", workers: int | None = None, folder: Path = RECORDS_DIR,
+              floors_file: Path = FLOORS_FILE, progress: bool = True) -> dict:
+    """Run the calibration episodes of ``suites`` (default: every regression suite) for every
+    agent into ``work_dir/results.jsonl`` (an interrupted calibration resumes there), then write
+    each suite's records to ``folder`` and the floors recomputed from all committed records to
+    ``floors_file``, every file atomically. Returns the floors data."""
+    suites = list(suites or regression_suites())
+    work = Path(work_dir)
+    results = work / "results.jsonl"
+    _claim_work_dir(work, suites)
+    jobs = []
+    for suite in suites:
+        cal = calibration_suite(suite)
+        config = RunConfig(suites=(suite.name,), backend=backend, workers=workers)
+        jobs += episode_jobs(cal, config, uuid.uuid4().hex[:12])
+    done = completed_keys(load_results(results))
+    todo = [j for j in jobs if record_key(j.key_record()) not in done]
+    for i, rec in enumerate(run_jobs(todo, backend=backend, workers=workers), start=1):
+        append_record(results, rec)
+        if progress:
+            print(f"[{i}/{len(todo)}] {rec['suite']} {rec['agent']} {rec['episode_id']} {rec['status']} "
+                  f"success={rec['metrics'].get('success')} {rec['timings'].get('wall_s', 0):.1f}s", file=sys.stderr)
+    records = latest_records(load_results(results))
+    for suite in suites:
+        name = calibration_suite(suite).name
+        order = {a: i for i, a in enumerate(suite.agents)}
+        mine = sorted((r for r in records if r["suite"] == name and r["agent"] in order),
+                      key=lambda r: (order[r["agent"]], r["episode_id"]))
+        text = "".join(json.dumps(_strip(r), allow_nan=False, separators=(",", ":")) + "\n" for r in mine)
+        atomic_write_text(records_file(suite, folder), text)
+    data = derive_floors(folder)
+    atomic_write_text(floors_file, _floors_text(data))
+    return data
+
+
+def _diff(want, got, path: str = "") -> list[str]:
+    if isinstance(want, dict) and isinstance(got, dict):
+        out = []
+        for k in sorted(set(want) | set(got)):
+            if k not in got:
+                out.append(f"{path}/{k}: recomputed, missing from the committed file")
+            elif k not in want:
+                out.append(f"{path}/{k}: in the committed file, not recomputed")
+            else:
+                out += _diff(want[k], got[k], f"{path}/{k}")
+        return out
+    return [] if want == got else [f"{path}: recomputed {want!r}, committed {got!r}"]
+
+
+def check(folder: Path = RECORDS_DIR, floors_file: Path = FLOORS_FILE) -> list[str]:
+    """Differences between the floors recomputed from the committed records and ``floors_file``
+    (empty: they agree)."""
+    try:
+        want = derive_floors(folder)
+    except (HarnessError, OSError, ValueError) as exc:
+        return [str(exc)]
+    if not Path(floors_file).is_file():
+        return [f"{floors_file}: missing; run python -m harness.runner.floors --calibrate"]
+    try:
+        got = json.loads(Path(floors_file).read_text())
+    except ValueError as exc:
+        return [f"{floors_file}: not JSON ({exc})"]
+    return _diff(want, got)
+
+
+def _table(data: dict) -> str:
+    lines = [f"{'suite':<30} {'agent':<16} {'bound':<8} {'value':>6} {'k/n':>9} {'calib':>9} {'rate':>5} "
+             f"{'detect':>6} {'FA':>5} {'FA exp':>6}"]
+    for suite, entry in data["suites"].items():
+        for agent, b in entry["agents"].items():
+            cal = b["calibration"]
+            lines.append(
+                f"{suite:<30} {agent:<16} {b['bound']:<8} {b['value']:>6.3f} {b['count']:>4}/{b['episodes']:<4} "
+                f"{cal['successes']:>4}/{cal['episodes']:<4} {cal['rate']:>5.2f} {b['detection']:>6.2f} "
+                f"{b['false_alarm']:>5.3f} {b['false_alarm_expected']:>6.3f}"
+                + ("" if b["power_met"] else "  (power target not met)") + ("" if b["can_fail"] else "  (cannot fail)"))
+    return "\n".join(lines)
+
+
+def main(argv: list[str] | None = None) -> int:
+    ap = argparse.ArgumentParser(prog="python -m harness.runner.floors", description=__doc__.splitlines()[0])
+    what = ap.add_mutually_exclusive_group(required=True)
+    what.add_argument("--calibrate", action="store_true", help="run the calibration episodes, write records and floors")
+    what.add_argument("--check", action="store_true", help="recompute the floors from the committed records and compare")
+    ap.add_argument("--suite", action="append", help="regression suite to calibrate (repeatable; default: all)")
+    ap.add_argument("--work", default="runs/floors-calibration", help="folder of the calibration run (resumable)")
+    ap.add_argument("--backend", default="process", help="where episodes run (process, serial, ray)")
+    ap.add_argument("--workers", type=int, default=None, help="worker processes (default: CPU count)")
+    args = ap.parse_args(argv)
+    if args.calibrate:
+        try:
+            suites = [_regression_suite(n) for n in args.suite] if args.suite else None
+            data = calibrate(suites, work_dir=args.work, backend=args.backend, workers=args.workers)
+        except (HarnessError, ValueError, OSError) as exc:
+            print(f"floors --calibrate: {exc}", file=sys.stderr)
+            return 2
+        print(_table(data))
+        print(f"wrote {FLOORS_FILE}")
+        return 0
+    problems = check()
+    for line in problems:
+        print(f"floors --check: {line}", file=sys.stderr)
+    if not problems:
+        print(_table(json.loads(FLOORS_FILE.read_text())))
+        print("floors match the committed calibration records")
+    return 1 if problems else 0
+
+
+if __name__ == "__main__":
+    sys.exit(main())

@@ -1,0 +1,29 @@
+"""Longest jobs first: the pool backends' order, and the rough lengths jobs declare."""
+
+from __future__ import annotations
+
+from types import SimpleNamespace
+
+from harness.runner.backends import expected_seconds, longest_first
+from harness.runner.map_jobs import map_suite_jobs
+from harness.runner.run import RunConfig, episode_jobs
+from harness.runner.suites import get_suite
+
+
+def test_longest_first_keeps_the_order_of_ties_and_reads_missing_or_bad_lengths_as_one_second():
+    jobs = [SimpleNamespace(expected_s=2.0), SimpleNamespace(), SimpleNamespace(expected_s=20.0),
+            SimpleNamespace(expected_s="slow"), SimpleNamespace(expected_s=-3.0), SimpleNamespace(expected_s=float("inf")),
+            SimpleNamespace(expected_s=2.0), SimpleNamespace(expected_s=0.5)]
+    assert [expected_seconds(j) for j in jobs] == [2.0, 1.0, 20.0, 1.0, 1.0, 1.0, 2.0, 0.5]
+    assert longest_first(jobs) == [2, 0, 6, 1, 3, 4, 5, 7]
+    assert longest_first([]) == []
+
+
+def test_search_episodes_of_map_agents_start_before_short_jobs():
+    config = RunConfig(suites=("rearrange", "search", "ablation"), limit=1)
+    jobs = (episode_jobs(get_suite("rearrange"), config, "r") + episode_jobs(get_suite("search"), config, "r")
+            + map_suite_jobs("ablation", config, "r"))
+    first = [jobs[i] for i in longest_first(jobs)]
+    assert [j.agent for j in first[:3]] == ["map-navigator", "frame-searcher", "map-pusher"]
+    assert first[-1].agent == "random-walker" or first[-1].suite == "ablation"
+    assert all(expected_seconds(j) > 0 for j in jobs)
