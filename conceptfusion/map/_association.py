@@ -37,7 +37,9 @@ def associate(geo, n, world_to_cam, K, valid_pix, verts, nrms, dist_th2, cos_th,
     """
     pixel_to_valid = pixel_index(valid_pix, h, w)
     parts = map_ranges(
-        lambda start, stop: scan(geo, start, stop, world_to_cam, K, pixel_to_valid, verts, nrms, dist_th2, cos_th, h, w),
+        lambda start, stop: scan(
+            geo, start, stop, world_to_cam, K, pixel_to_valid, verts, nrms, dist_th2, cos_th, h, w, start > 0
+        ),
         n,
         min_chunk=_THREAD_CHUNK,
     )
@@ -58,53 +60,35 @@ def pixel_index(valid_pix, h, w):
 
 
 @njit(cache=True, nogil=True, error_model="numpy")
-def _project(geo, start, stop, world_to_cam, K, h, w, idx_out, pix_out, z_out):
-    """Points ``start:stop`` of ``geo`` that land in the ``h x w`` frame in front of the camera.
-
-    Writes their indices, flat pixels ``v * w + u`` (``u, v`` the rounded projection) and
-    camera depths to the front of ``idx_out``, ``pix_out``, ``z_out``; returns how many, in
-    point order. Positions are copied block-wise into contiguous buffers so that the
-    projection runs branch-free over SIMD lanes; the arithmetic, and so every rounding, is
-    that of a plain per-point loop.
-    """
+def _project_block(geo, start, cnt, world_to_cam, K, h, w, xs, ys, zs, qs, zcs):
+    """Project points ``start:start + cnt``: flat pixel ``v * w + u`` (``u, v`` the rounded
+    projection; -1 outside the frame or behind the camera) into ``qs`` and camera depth into
+    ``zcs``. Positions are first copied into contiguous buffers so that the projection runs
+    branch-free over SIMD lanes; the arithmetic, and so every rounding, is that of a plain
+    per-point loop."""
     r00, r01, r02, t0 = world_to_cam[0, 0], world_to_cam[0, 1], world_to_cam[0, 2], world_to_cam[0, 3]
     r10, r11, r12, t1 = world_to_cam[1, 0], world_to_cam[1, 1], world_to_cam[1, 2], world_to_cam[1, 3]
     r20, r21, r22, t2 = world_to_cam[2, 0], world_to_cam[2, 1], world_to_cam[2, 2], world_to_cam[2, 3]
     fx, s, cx, fy, cy = K[0, 0], K[0, 1], K[0, 2], K[1, 1], K[1, 2]
     fw = np.float64(w)
     fh = np.float64(h)
-    xs = np.empty(_PROJECT_BLOCK, np.float64)
-    ys = np.empty(_PROJECT_BLOCK, np.float64)
-    zs = np.empty(_PROJECT_BLOCK, np.float64)
-    qs = np.empty(_PROJECT_BLOCK, np.int32)
-    zcs = np.empty(_PROJECT_BLOCK, np.float64)
-    m = 0
-    for block in range(start, stop, _PROJECT_BLOCK):
-        cnt = min(_PROJECT_BLOCK, stop - block)
-        for i in range(cnt):
-            xs[i] = geo[block + i, 0]
-            ys[i] = geo[block + i, 1]
-            zs[i] = geo[block + i, 2]
-        for i in range(cnt):
-            x = xs[i]
-            y = ys[i]
-            z = zs[i]
-            zc = r20 * x + r21 * y + r22 * z + t2
-            xc = (r00 * x + r01 * y + r02 * z + t0) / zc
-            yc = (r10 * x + r11 * y + r12 * z + t1) / zc
-            u = np.rint(fx * xc + s * yc + cx)
-            v = np.rint(fy * yc + cy)
-            inside = (zc > 0.0) & (u >= 0.0) & (u < fw) & (v >= 0.0) & (v < fh)
-            q = np.int32(min(max(v, 0.0), fh)) * np.int32(w) + np.int32(min(max(u, 0.0), fw))
-            qs[i] = q if inside else -1
-            zcs[i] = zc
-        for i in range(cnt):
-            if qs[i] >= 0:
-                idx_out[m] = block + i
-                pix_out[m] = qs[i]
-                z_out[m] = zcs[i]
-                m += 1
-    return m
+    for i in range(cnt):
+        xs[i] = geo[start + i, 0]
+        ys[i] = geo[start + i, 1]
+        zs[i] = geo[start + i, 2]
+    for i in range(cnt):
+        x = xs[i]
+        y = ys[i]
+        z = zs[i]
+        zc = r20 * x + r21 * y + r22 * z + t2
+        xc = (r00 * x + r01 * y + r02 * z + t0) / zc
+        yc = (r10 * x + r11 * y + r12 * z + t1) / zc
+        u = np.rint(fx * xc + s * yc + cx)
+        v = np.rint(fy * yc + cy)
+        inside = (zc > 0.0) & (u >= 0.0) & (u < fw) & (v >= 0.0) & (v < fh)
+        q = np.int32(min(max(v, 0.0), fh)) * np.int32(w) + np.int32(min(max(u, 0.0), fw))
+        qs[i] = q if inside else -1
+        zcs[i] = zc
 
 
 @njit(cache=True, nogil=True, inline="always")
@@ -119,49 +103,55 @@ def _compatible(geo, k, verts, nrms, j, dist_th2, cos_th):
 
 
 @njit(cache=True, nogil=True)
-def scan(geo, start, stop, world_to_cam, K, pixel_to_valid, verts, nrms, dist_th2, cos_th, h, w):
+def scan(geo, start, stop, world_to_cam, K, pixel_to_valid, verts, nrms, dist_th2, cos_th, h, w, track_min):
     """Candidates among points ``start:stop``, in point order.
 
     Returns ``(best_pt, best_conf, best_d2, near_pt, near_z, near_min)``: per valid pixel the
     winning candidate (-1: none), its confidence and squared distance, (V,); per pixel the
-    nearest point projecting onto it (-1: none), its depth as kept (float32), and the exact
-    smallest depth seen (float64), (h * w,).
+    nearest point projecting onto it (-1: none), its depth as kept (float32), and, when
+    ``track_min`` (a later range, to be merged), the exact smallest depth seen (float64),
+    (h * w,) (else empty).
     """
     num_valid = verts.shape[0]
-    count = stop - start
-    idx = np.empty(count, np.int32)
-    pix = np.empty(count, np.int32)
-    zc = np.empty(count, np.float64)
-    m = _project(geo, start, stop, world_to_cam, K, h, w, idx, pix, zc)
     best_pt = np.full(num_valid, -1, np.int32)
     best_conf = np.zeros(num_valid, np.float32)
     best_d2 = np.zeros(num_valid, np.float32)
     near_pt = np.full(h * w, -1, np.int32)
     near_z = np.full(h * w, np.inf, np.float32)
-    near_min = np.full(h * w, np.inf, np.float64)
-    for i in range(m):
-        k = idx[i]
-        q = pix[i]
-        z = zc[i]
-        if z < near_z[q]:
-            near_z[q] = z
-            near_pt[q] = k
-        if z < near_min[q]:
-            near_min[q] = z
-        j = pixel_to_valid[q]
-        if j < 0:
-            continue
-        if not _compatible(geo, k, verts, nrms, j, dist_th2, cos_th):
-            continue
-        dx = geo[k, 0] - verts[j, 0]
-        dy = geo[k, 1] - verts[j, 1]
-        dz = geo[k, 2] - verts[j, 2]
-        d2 = dx * dx + dy * dy + dz * dz
-        c = geo[k, 9]
-        if best_pt[j] < 0 or c > best_conf[j] or (c == best_conf[j] and d2 < best_d2[j]):
-            best_pt[j] = k
-            best_conf[j] = c
-            best_d2[j] = d2
+    near_min = np.full(h * w if track_min else 0, np.inf, np.float64)
+    xs = np.empty(_PROJECT_BLOCK, np.float64)
+    ys = np.empty(_PROJECT_BLOCK, np.float64)
+    zs = np.empty(_PROJECT_BLOCK, np.float64)
+    qs = np.empty(_PROJECT_BLOCK, np.int32)
+    zcs = np.empty(_PROJECT_BLOCK, np.float64)
+    for block in range(start, stop, _PROJECT_BLOCK):
+        cnt = min(_PROJECT_BLOCK, stop - block)
+        _project_block(geo, block, cnt, world_to_cam, K, h, w, xs, ys, zs, qs, zcs)
+        for i in range(cnt):
+            q = qs[i]
+            if q < 0:
+                continue
+            k = block + i
+            z = zcs[i]
+            if z < near_z[q]:
+                near_z[q] = z
+                near_pt[q] = k
+            if track_min and z < near_min[q]:
+                near_min[q] = z
+            j = pixel_to_valid[q]
+            if j < 0:
+                continue
+            if not _compatible(geo, k, verts, nrms, j, dist_th2, cos_th):
+                continue
+            dx = geo[k, 0] - verts[j, 0]
+            dy = geo[k, 1] - verts[j, 1]
+            dz = geo[k, 2] - verts[j, 2]
+            d2 = dx * dx + dy * dy + dz * dz
+            c = geo[k, 9]
+            if best_pt[j] < 0 or c > best_conf[j] or (c == best_conf[j] and d2 < best_d2[j]):
+                best_pt[j] = k
+                best_conf[j] = c
+                best_d2[j] = d2
     return best_pt, best_conf, best_d2, near_pt, near_z, near_min
 
 
@@ -175,7 +165,8 @@ def merge_scans(best_pt, best_conf, best_d2, near_pt, near_z, near_min,
     and replaces it only by a strictly smaller exact depth; if the later range saw a depth
     below the earlier range's kept one, its first such point would have replaced it, and from
     there on the single scan would have followed the later range's own record, so the later
-    range's result stands; otherwise the earlier one does.
+    range's result stands; otherwise the earlier one does. (Only the later range's exact
+    minimum is read; the earlier range's ``near_min`` is left as it is.)
     """
     for j in range(best_pt.shape[0]):
         b = b_pt[j]
@@ -187,8 +178,6 @@ def merge_scans(best_pt, best_conf, best_d2, near_pt, near_z, near_min,
         if b_near_min[q] < near_z[q]:
             near_pt[q] = b_near_pt[q]
             near_z[q] = b_near_z[q]
-        if b_near_min[q] < near_min[q]:
-            near_min[q] = b_near_min[q]
 
 
 @njit(cache=True, nogil=True)

@@ -31,20 +31,33 @@ episodes, calibrated rate ``p = k / m``, confidence ``1 - a`` (:data:`CONFIDENCE
   of being claimed. An agent that almost never succeeds cannot be given a floor that can fail
   on few episodes: at a calibrated rate ``p`` even a floor of one success needs ``n`` with
   ``(1 - p)^n <= a`` (149 episodes at p = 0.02, 299 at p = 0.01). ``frame-searcher`` (oracle
-  perception, 1 of 100 calibration episodes) is such an agent: its floor is 0 (``can_fail`` false) and it runs one
-  pinned episode, which guards only against crashes (the check fails any crashed episode,
-  ``harness.commands``), not against it finding goals less often.
+  perception, 1 of 100 calibration episodes) is such an agent: its floor is 0 (``can_fail``
+  false) and it runs one pinned episode, which guards only against crashes (the check fails any
+  crashed episode, ``harness.commands``), not against it finding goals less often.
 - *False alarms*: ``false_alarm`` is the probability that an unchanged agent whose true rate is
   exactly ``p`` fails the check (at most ``a`` by construction); ``false_alarm_expected`` averages
   it over what the calibration leaves uncertain about the rate (Jeffreys posterior
   Beta(k + 1/2, m - k + 1/2), i.e. the beta-binomial predictive of the regression count), so it
   is the chance that a calibration plus a regression run of an unchanged agent disagree; it is
-  larger than ``a`` because ``p`` is itself an estimate from ``m`` episodes.
+  larger than ``a`` because ``p`` is itself an estimate from ``m`` episodes. With ten bounds in
+  the gate, the chance that *some* bound fails for unchanged agents is far larger than any one
+  bound's (``false_alarm_any_expected`` in the floors file, about 45%): the price of catching a
+  15-point drop with 80% probability per agent on at most 100 episodes. Holding the family to 5%
+  instead (Sidak, beta-binomial) would leave most agents' detection probability between 0.35 and 0.7
+  on the same budget.
 
 All of it is exact binomial (or beta-binomial) arithmetic from :mod:`scipy.stats`, never a
 normal approximation. The regression episodes are pinned and the agents deterministic, so a run
-of unchanged code always gives the same verdict: a false alarm, if one happened, would show the
-day the floors were calibrated, not at random later.
+of unchanged code always gives the same verdict (a false alarm shows the day the floors are
+calibrated), while a change that leaves an agent's rate as it was still reshuffles which
+episodes it solves, and then fails a bound with the probabilities above. The first run of the
+gate with per-bound 95% counts failed one bound of ten: ``map-pusher`` with embedded perception
+solved 36 of its 69 pinned episodes, below its floor of 38 (calibrated on 96 of 150). The gate
+therefore sets every count at the family-wise level (:data:`FAMILY_ALARM`,
+:func:`family_confidence`: the whole gate fails for unchanged agents at their calibrated rates
+with probability at most 5%), keeping the episode counts chosen for per-bound power; the
+detection probabilities recorded are those of the family-wise counts (0.37-0.64 for most agents,
+``power_met`` false).
 
 **Files.** The calibration records (``harness/data/floors/<suite>.jsonl``, results records as
 the runner writes them, less the per-step ``extras.path_xy`` traces) and the floors
@@ -93,6 +106,12 @@ with probability at most ``1 - CONFIDENCE``."""
 DROP = 0.15
 """The change in success rate (15 points) that the check must catch with probability :data:`POWER`."""
 POWER = 0.80
+FAMILY_ALARM = 0.05
+"""The chance, at most, that the whole gate (every bound of every regression suite) fails for
+unchanged agents at their calibrated rates: each bound's count is set at the Sidak level
+``1 - (1 - FAMILY_ALARM) ** (1 / bounds)`` (the episode counts stay those chosen for per-bound
+power at :data:`CONFIDENCE`, so the recorded detection probabilities are those of the lower
+family-wise counts)."""
 """Target probability of catching a drop of :data:`DROP` (a rise, for a ceiling)."""
 MAX_EPISODES = {"regression-rearrange": 100, "regression-rearrange-embedded": 100, "regression-search": 50}
 """Most pinned episodes an agent may run per regression suite (CI budget, and for search all the
@@ -230,8 +249,17 @@ class Bound:
         }
 
 
+def family_confidence(bounds: int, family_alarm: float = FAMILY_ALARM) -> float:
+    """The per-bound confidence that holds the chance of any of ``bounds`` independent bounds
+    failing for unchanged agents to ``family_alarm`` (Sidak)."""
+    if bounds < 1:
+        raise ValueError(f"bounds: expected at least 1, got {bounds}")
+    return (1.0 - family_alarm) ** (1.0 / bounds)
+
+
 def derive_bound(agent: str, kind: str, successes: int, episodes: int, max_episodes: int, *,
-                 confidence: float = CONFIDENCE, drop: float = DROP, power: float = POWER) -> Bound:
+                 confidence: float = CONFIDENCE, drop: float = DROP, power: float = POWER,
+                 check_confidence: float | None = None) -> Bound:
     """The bound of ``agent`` from ``successes`` of ``episodes`` calibration episodes (see the
     module docstring): the smallest regression count ``n <= max_episodes`` whose bound can fail
     and catches a move of ``drop`` with probability ``power``; where none does, the smallest ``n``
@@ -253,7 +281,7 @@ def derive_bound(agent: str, kind: str, successes: int, episodes: int, max_episo
             break
         best = max(best, (det, -n))
     n = chosen or -best[1]
-    c = count_at(rate, n, confidence)
+    c = count_at(rate, n, confidence if check_confidence is None else check_confidence)
     det = detection_probability(kind, c, n, rate, drop)
     return Bound(
         agent=agent, bound=kind, value=c / n, count=c, episodes=n, calibration_successes=successes,
@@ -343,30 +371,48 @@ def load_calibration(suite: Suite, folder: Path = RECORDS_DIR) -> dict[str, list
     return out
 
 
-def derive_suite(suite: Suite, folder: Path = RECORDS_DIR) -> dict:
-    """The floors-file entry of one regression suite, recomputed from its committed records."""
+def derive_suite(suite: Suite, folder: Path = RECORDS_DIR, *, check_confidence: float | None = None) -> dict:
+    """The floors-file entry of one regression suite, recomputed from its committed records;
+    ``check_confidence``: the level the counts are set at (default :data:`CONFIDENCE`)."""
     cal = load_calibration(suite, folder)
     max_n = _max_episodes(suite)
     agents = {}
     for agent, outcomes in cal.items():
         kind = "ceiling" if agent in CEILING_AGENTS else "floor"
-        agents[agent] = derive_bound(agent, kind, sum(outcomes), len(outcomes), max_n).as_json()
+        agents[agent] = derive_bound(agent, kind, sum(outcomes), len(outcomes), max_n,
+                                     check_confidence=check_confidence).as_json()
     return {"records": records_file(suite, folder).name, "settings": _settings(suite), "agents": agents}
 
 
 def derive_floors(folder: Path = RECORDS_DIR) -> dict:
-    """The whole floors file, recomputed from the committed calibration records."""
+    """The whole floors file, recomputed from the committed calibration records.
+
+    ``false_alarm_any_expected`` is the probability that at least one bound of all the suites
+    fails for unchanged agents, ``1 - prod(1 - false_alarm_expected)`` (bounds independent): each
+    bound's own false-alarm rate is small, but a gate of many bounds fails somewhere more often.
+    """
+    bounds = sum(len(load_calibration(s, folder)) for s in regression_suites())
+    level = family_confidence(bounds)
+    suites = {s.name: derive_suite(s, folder, check_confidence=level) for s in regression_suites()}
+    quiet = 1.0
+    for entry in suites.values():
+        for b in entry["agents"].values():
+            quiet *= 1.0 - b["false_alarm_expected"]
     return {
         "format": FLOORS_FORMAT, "version": FLOORS_VERSION,
         "method": {
             "confidence": CONFIDENCE, "drop": DROP, "power": POWER, "ceiling_agents": sorted(CEILING_AGENTS),
+            "family_alarm": FAMILY_ALARM, "bounds": bounds, "check_confidence": round(level, 6),
+            "counts": "episode counts chosen for per-bound power at `confidence`; bound counts set at `check_confidence` "
+                      "so that the whole gate fails for unchanged agents with probability at most `family_alarm`",
             "floor": "largest c with P(Bin(n, p) < c) <= 1 - confidence, p = calibrated rate: fails iff the run's "
                      "one-sided Clopper-Pearson upper bound is below p",
             "ceiling": "smallest c with P(Bin(n, p) > c) <= 1 - confidence",
             "episodes": "smallest n <= max_episodes whose bound can fail and catches a move of `drop` with "
                         "probability >= power (exact binomial)",
         },
-        "suites": {s.name: derive_suite(s, folder) for s in regression_suites()},
+        "false_alarm_any_expected": round(1.0 - quiet, 4),
+        "suites": suites,
     }
 
 
@@ -476,6 +522,7 @@ def main(argv: list[str] | None = None) -> int:
     what = ap.add_mutually_exclusive_group(required=True)
     what.add_argument("--calibrate", action="store_true", help="run the calibration episodes, write records and floors")
     what.add_argument("--check", action="store_true", help="recompute the floors from the committed records and compare")
+    what.add_argument("--derive", action="store_true", help="recompute the floors from the committed records and write them")
     ap.add_argument("--suite", action="append", help="regression suite to calibrate (repeatable; default: all)")
     ap.add_argument("--work", default="runs/floors-calibration", help="folder of the calibration run (resumable)")
     ap.add_argument("--backend", default="process", help="where episodes run (process, serial, ray)")
@@ -488,6 +535,12 @@ def main(argv: list[str] | None = None) -> int:
         except (HarnessError, ValueError, OSError) as exc:
             print(f"floors --calibrate: {exc}", file=sys.stderr)
             return 2
+        print(_table(data))
+        print(f"wrote {FLOORS_FILE}")
+        return 0
+    if args.derive:
+        data = derive_floors()
+        atomic_write_text(FLOORS_FILE, _floors_text(data))
         print(_table(data))
         print(f"wrote {FLOORS_FILE}")
         return 0

@@ -248,7 +248,7 @@ def test_merged_nearest_point_follows_float32_rounding():
     a = (*none, np.array([0], np.int32), np.array([kept], np.float32), np.array([z1]))
     b = (*none, np.array([1], np.int32), np.array([np.float32(z2)], np.float32), np.array([z2]))
     _association.merge_scans(*a, *b)
-    assert a[3][0] == 0 and a[5][0] == z2
+    assert a[3][0] == 0 and a[4][0] == kept
     c = (*none, np.array([2], np.int32), np.array([np.float32(0.5)], np.float32), np.array([0.5]))
     _association.merge_scans(*a, *c)  # strictly nearer than the kept depth: replaces it
     assert a[3][0] == 2 and a[4][0] == np.float32(0.5)
