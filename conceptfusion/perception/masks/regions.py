@@ -279,6 +279,21 @@ def _plane_pixels_kernel(p, valid, mean, normal, tol):
     return on, False
 
 
+@njit(cache=True, nogil=True, inline="always")
+def _add_point(out, r, x, y, z):
+    """Add one point to region ``r``'s count, sums and second-moment sums (row of ``out``)."""
+    out[r, 0] += 1.0
+    out[r, 1] += x
+    out[r, 2] += y
+    out[r, 3] += z
+    out[r, 4] += x * x
+    out[r, 5] += x * y
+    out[r, 6] += x * z
+    out[r, 7] += y * y
+    out[r, 8] += y * z
+    out[r, 9] += z * z
+
+
 @njit(cache=True, nogil=True)
 def _moments(lab, m, p, use):
     """Per-region count, sums and second-moment sums of the points with ``use`` set.
@@ -292,16 +307,7 @@ def _moments(lab, m, p, use):
             continue
         r = lab[i]
         x, y, z = p[i, 0], p[i, 1], p[i, 2]
-        out[r, 0] += 1.0
-        out[r, 1] += x
-        out[r, 2] += y
-        out[r, 3] += z
-        out[r, 4] += x * x
-        out[r, 5] += x * y
-        out[r, 6] += x * z
-        out[r, 7] += y * y
-        out[r, 8] += y * z
-        out[r, 9] += z * z
+        _add_point(out, r, x, y, z)
     return out
 
 
@@ -322,16 +328,7 @@ def _near_moments(lab, m, p, valid, which, mean, normal, lim):
         x, y, z = p[i, 0], p[i, 1], p[i, 2]
         if not abs((x - mean[r, 0]) * normal[r, 0] + (y - mean[r, 1]) * normal[r, 1] + (z - mean[r, 2]) * normal[r, 2]) <= lim:
             continue
-        out[r, 0] += 1.0
-        out[r, 1] += x
-        out[r, 2] += y
-        out[r, 3] += z
-        out[r, 4] += x * x
-        out[r, 5] += x * y
-        out[r, 6] += x * z
-        out[r, 7] += y * y
-        out[r, 8] += y * z
-        out[r, 9] += z * z
+        _add_point(out, r, x, y, z)
     return out
 
 
