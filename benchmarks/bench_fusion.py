@@ -5,8 +5,8 @@
 A 60-frame orbit of shipped-generator tabletop scene 0 rendered by MuJoCo at 240x320 with
 segmentation (objects and furniture labelled); each frame's 512-d features come from
 ``_scenes.frame_palette``: every labelled region split by a 4x4 image grid into parts, each
-part its region's feature plus per-frame noise (about 20 distinct features a frame), as a
-mask proposer plus CLIP gives. The same frames are fused four ways, each into a fresh map
+part its region's feature plus per-frame noise (about 17 distinct features a frame), as a
+mask proposer plus CLIP gives. The same frames are fused three ways, each into a fresh map
 (first frame excluded as warm-up), ``--repeats`` times, median reported:
 
 * ``palette``: :class:`~conceptfusion.perception.features.PixelFeatures`;
@@ -18,7 +18,7 @@ Targets (2-core CPU, idle): palettes >= 150 frames/s, dense >= 60 frames/s, <= 2
 
 Per-pixel path: the same frames with synthetic LSeg-like features (every pixel distinct: its
 region's direction, plus a smooth per-frame field of 4 low-frequency image modes, plus
-per-pixel noise; neighbouring pixels at cosine about 0.97), quantised with
+per-pixel noise; neighbouring pixels at cosine about 0.98), quantised with
 :func:`~conceptfusion.map.quantize.quantize_features` (64 entries) then fused. Reported:
 quantisation time per frame, fusion throughput, ``1 - cos`` between exact and quantised pixel
 features, and query-score differences between the quantised map and the exact map (every
@@ -92,7 +92,8 @@ def bench_inputs(views, feats, repeats: int) -> None:
             rate, fmap = time_fusion(views, feats, convert)
             rates.append(rate)
         print(f"  {name:8s} {statistics.median(rates):6.1f} frames/s median of {repeats} "
-              f"({', '.join(f'{r:.1f}' for r in rates)}); {len(fmap):,} points, {fmap.nbytes() / len(fmap):.0f} B/point")
+              f"({', '.join(f'{r:.1f}' for r in rates)}); {len(fmap):,} points, "
+              f"{fmap.nbytes() / len(fmap):.0f} B/point")
 
 
 def lseg_like(segmentation_hw: np.ndarray, base_kd: np.ndarray, rng: np.random.Generator,

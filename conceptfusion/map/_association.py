@@ -170,7 +170,8 @@ def merge_scans(best_pt, best_conf, best_d2, near_pt, near_z, near_min,
     """
     for j in range(best_pt.shape[0]):
         b = b_pt[j]
-        if b >= 0 and (best_pt[j] < 0 or b_conf[j] > best_conf[j] or (b_conf[j] == best_conf[j] and b_d2[j] < best_d2[j])):
+        better = b_conf[j] > best_conf[j] or (b_conf[j] == best_conf[j] and b_d2[j] < best_d2[j])
+        if b >= 0 and (best_pt[j] < 0 or better):
             best_pt[j] = b
             best_conf[j] = b_conf[j]
             best_d2[j] = b_d2[j]

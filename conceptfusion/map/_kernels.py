@@ -2,8 +2,9 @@
 
 Fusion touches every fused pixel (merging) once per frame, and queries every map point; as
 fused single passes these run several times faster than the equivalent chains of numpy
-temporaries (projective association has its own module, ``_association``). Each kernel has a plain-numpy specification in its docstring and is
-tested against the map's behaviour, not re-implemented elsewhere.
+temporaries (projective association has its own module, ``_association``). Each kernel has a
+plain-numpy specification in its docstring and is tested against the map's behaviour, not
+re-implemented elsewhere.
 """
 
 from __future__ import annotations
@@ -115,7 +116,14 @@ def mixture_scores(point_ids, point_w, point_sq, bank_scores, start, stop, out):
     float64. Points without a feature (first id -1, or ``|S|^2 <= 0``) get NaN. Writes
     ``out[start:stop]`` (float32); ``nogil``, so disjoint ranges can run on several threads.
     """
-    k_slots = point_ids.shape[1]
+    if point_ids.shape[1] == 8:  # the default: a constant slot count lets the loop unroll
+        _mixture_range(point_ids, point_w, point_sq, bank_scores, start, stop, out, 8)
+    else:
+        _mixture_range(point_ids, point_w, point_sq, bank_scores, start, stop, out, point_ids.shape[1])
+
+
+@njit(cache=True, nogil=True, inline="always")
+def _mixture_range(point_ids, point_w, point_sq, bank_scores, start, stop, out, k_slots):
     for p in range(start, stop):
         if point_ids[p, 0] < 0 or point_sq[p] <= 0.0:
             out[p] = np.nan

@@ -8,7 +8,10 @@ inside a region) takes its id after one ``d``-word comparison; any other row is 
 all its words and looked up in an open-addressing table of the distinct rows found so far,
 every candidate confirmed word by word, so the grouping is exact whatever the hash does.
 The cost is one read of the array (about 160 MB at 240x320 with 512-d float32 features)
-plus ``d`` multiply-adds for each row that starts a new run.
+plus ``d`` multiply-adds for each row that starts a new run. Large frames are split into
+blocks of rows grouped on several threads (``NUMBA_NUM_THREADS``); each later block's
+distinct rows are then looked up among the earlier ones, so the palette and its order are
+the same as from one pass.
 
 Rows that are all zero (``0.0`` or ``-0.0``) mean "no feature". Non-finite values are
 reported, never grouped silently.
@@ -50,7 +53,9 @@ def palette_from_dense(feats_hwd) -> PixelFeatures:
         return PixelFeatures(np.zeros((0, d), np.float32), np.full((h, w), -1, np.int32))
     bits = flat.view(np.int32)
     weights = hash_weights(d)
-    parts = map_ranges(lambda start, stop: (start, *_group_rows(bits[start:stop], weights)), h * w, min_chunk=_THREAD_ROWS)
+    parts = map_ranges(
+        lambda start, stop: (start, *_group_rows(bits[start:stop], weights)), h * w, min_chunk=_THREAD_ROWS
+    )
     _, first, index, finite = parts[0]
     if len(parts) > 1:
         index = np.concatenate([p[2] for p in parts])

@@ -7,7 +7,9 @@ distinct features (one per set of overlapping masks, see
 :class:`conceptfusion.perception.features.PixelFeatures`), so instead of a d-dimensional vector per
 point the store keeps:
 
-* a **bank** of distinct frame features, ``(B, d)`` float32, shared by all points;
+* a **bank** of distinct frame features, ``(B, d)`` float32, shared by all points; a frame's
+  features are looked up by a hash of their bits (an open-addressing table of bank rows,
+  every match confirmed word by word), so a feature seen again is stored once;
 * the squared norm of each bank entry, ``(B,)`` float32;
 * per point, the ids of at most ``K`` bank entries it has seen, their summed confidences
   ``w`` (float32), the off-diagonal Gram entries of those bank entries (strict upper

@@ -19,11 +19,11 @@ the pixels assigned to it. Working memory is bounded by ``sample * d`` plus
 dominated by the assignment, ``H * W * entries * d`` multiply-adds (2.5 G for 240x320, 64
 entries, 512-d): about 0.12 s of CPU a frame on this project's 2-core machine.
 
-Measured error (``benchmarks/bench_fusion.py``: 12 frames of a 240x320 MuJoCo orbit with
-512-d synthetic per-pixel features, each pixel its region's direction plus a smooth
-per-frame field plus noise, neighbouring pixels at cosine 0.977): with 64 entries,
+Measured error (``benchmarks/bench_fusion.py``: the first 12 frames of a 240x320 MuJoCo
+orbit with 512-d synthetic per-pixel features, each pixel its region's direction plus a
+smooth per-frame field plus noise, neighbouring pixels at cosine 0.978): with 64 entries,
 ``1 - cos`` between a pixel's exact and quantised feature is 0.012 on average (99th
-percentile 0.020, worst pixel 0.033); query scores of the map fused from quantised features
+percentile 0.021, worst pixel 0.040); query scores of the map fused from quantised features
 differ from those of the exact map (every pixel its own bank row, 325 MiB of bank against
 14 MiB, at 120x160) by 0.005 on average (99th percentile 0.019), and the top-10% point sets
 agree on 96.5% of points. The input norms are dropped: palette rows are unit length.
@@ -68,7 +68,8 @@ def quantize_features(
         index (H, W) int32.
     """
     f = as_float_array("feats_hwd", feats_hwd, shape=(None, None, None))
-    for name, v, lo in (("entries", entries, 1), ("iterations", iterations, 0), ("sample", sample, 1), ("chunk", chunk, 1)):
+    checks = (("entries", entries, 1), ("iterations", iterations, 0), ("sample", sample, 1), ("chunk", chunk, 1))
+    for name, v, lo in checks:
         if int(v) != v or v < lo:
             raise ValueError(f"{name}: expected an integer >= {lo}, got {v!r}")
     h, w, d = f.shape
