@@ -44,6 +44,21 @@ def row_hash(bits, r, weights):
 
 
 @njit(cache=True, nogil=True)
+def probe(table, hash_of, row_of, bits, r, hv):
+    """Find row ``r`` of ``bits`` (hash ``hv``) in an open-addressing ``table`` (power-of-two
+    size) whose entries index ``hash_of`` / ``row_of``: ``(slot, entry)`` with ``entry`` -1 and
+    ``slot`` the free slot where it would go when absent."""
+    mask = table.shape[0] - 1
+    slot = np.int64(hv & np.uint64(mask))
+    while table[slot] != EMPTY:
+        e = table[slot]
+        if hash_of[e] == hv and rows_equal(bits, r, bits, row_of[e]):
+            return slot, e
+        slot = (slot + 1) & mask
+    return slot, -1
+
+
+@njit(cache=True, nogil=True)
 def row_hashes(bits, weights):
     """Hash of every row of ``bits`` (N, d) int32, (N,) uint64."""
     out = np.empty(bits.shape[0], np.uint64)

@@ -27,7 +27,7 @@ import numpy as np
 from numba import njit
 
 from conceptfusion._checks import as_float_array
-from conceptfusion.map._rowhash import EMPTY, build_table, hash_weights, row_hash, rows_equal
+from conceptfusion.map._rowhash import EMPTY, build_table, hash_weights, probe, row_hash, rows_equal
 from conceptfusion.map._threads import map_ranges
 from conceptfusion.perception.features import PixelFeatures
 
@@ -105,14 +105,7 @@ def _group_rows(bits, weights):
             index[i] = index[i - 1]
             continue
         hv = row_hash(bits, i, weights)
-        slot = np.int64(hv & np.uint64(cap - 1))
-        found = -1
-        while table[slot] != EMPTY:
-            r = table[slot]
-            if hash_of[r] == hv and rows_equal(bits, i, bits, row_of[r]):
-                found = r
-                break
-            slot = (slot + 1) & (cap - 1)
+        slot, found = probe(table, hash_of, row_of, bits, i, hv)
         if found < 0:
             if num_rows == len(row_of):
                 row_of = _grow(row_of)
@@ -170,14 +163,7 @@ def _merge_entries(bits, weights, first_a, first_b):
     for e in range(nb):
         r = first_b[e]
         hv = row_hash(bits, r, weights)
-        slot = np.int64(hv & np.uint64(cap - 1))
-        found = -1
-        while table[slot] != EMPTY:
-            c = table[slot]
-            if hashes[c] == hv and rows_equal(bits, r, bits, rows[c]):
-                found = c
-                break
-            slot = (slot + 1) & (cap - 1)
+        slot, found = probe(table, hashes, rows, bits, r, hv)
         if found < 0:
             found = count
             rows[count] = r
