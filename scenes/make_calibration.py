@@ -18,7 +18,6 @@ the episodes it then checks:
 
 from __future__ import annotations
 
-import argparse
 import json
 import sys
 import tempfile
@@ -26,7 +25,7 @@ from pathlib import Path
 
 import numpy as np
 
-from scenes.shipped import ROOT, write_or_check
+from scenes.shipped import ROOT, generator_main
 from sim_envs.scenes.episodes import (
     Episode, EpisodeSet, episodes_text, load_episodes, tabletop_goals, tabletop_instruction,
 )
@@ -94,10 +93,7 @@ def build_files() -> dict[str, str]:
 
 
 def main(argv: list[str] | None = None) -> int:
-    ap = argparse.ArgumentParser(description=__doc__.splitlines()[0])
-    ap.add_argument("--check", action="store_true", help="compare with the shipped files instead of writing")
-    args = ap.parse_args(argv)
-    return write_or_check(build_files(), FOLDER, check=args.check)
+    return generator_main(build_files, FOLDER, __doc__.splitlines()[0], argv)
 
 
 if __name__ == "__main__":

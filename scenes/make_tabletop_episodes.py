@@ -6,11 +6,10 @@
 
 from __future__ import annotations
 
-import argparse
 import json
 import sys
 
-from scenes.shipped import write_or_check
+from scenes.shipped import generator_main
 from sim_envs.scenes.episodes import episodes_text, generate_tabletop_episodes
 
 __all__ = ["GENERATOR_SEED", "COUNT", "build_files", "main"]
@@ -29,10 +28,7 @@ def build_files(generator_seed: int = GENERATOR_SEED, count: int = COUNT) -> dic
 
 
 def main(argv: list[str] | None = None) -> int:
-    ap = argparse.ArgumentParser(description=__doc__.splitlines()[0])
-    ap.add_argument("--check", action="store_true", help="compare with the shipped files instead of writing")
-    args = ap.parse_args(argv)
-    return write_or_check(build_files(), "tabletop", check=args.check)
+    return generator_main(build_files, "tabletop", __doc__.splitlines()[0], argv)
 
 
 if __name__ == "__main__":

@@ -10,12 +10,11 @@ pushes are checked against the PyBullet Panda's inverse kinematics
 
 from __future__ import annotations
 
-import argparse
 import json
 import sys
 
 from sim_envs.pybullet.reach import PandaReach
-from scenes.shipped import write_or_check
+from scenes.shipped import generator_main
 from sim_envs.scenes.episodes import episodes_text
 from sim_envs.scenes.gen_tabletop_v2 import TABLE
 from sim_envs.scenes.splits import splits
@@ -43,10 +42,7 @@ def build_files(generator_seed: int = GENERATOR_SEED, count: int = COUNT) -> dic
 
 
 def main(argv: list[str] | None = None) -> int:
-    ap = argparse.ArgumentParser(description=__doc__.splitlines()[0])
-    ap.add_argument("--check", action="store_true", help="compare with the shipped files instead of writing")
-    args = ap.parse_args(argv)
-    return write_or_check(build_files(), FOLDER, check=args.check)
+    return generator_main(build_files, FOLDER, __doc__.splitlines()[0], argv)
 
 
 if __name__ == "__main__":

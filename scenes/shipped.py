@@ -2,11 +2,13 @@
 
 from __future__ import annotations
 
+import argparse
 from pathlib import Path
+from typing import Callable
 
 from conceptfusion.io_utils import atomic_write_text
 
-__all__ = ["ROOT", "write_or_check"]
+__all__ = ["ROOT", "write_or_check", "generator_main"]
 
 ROOT = Path(__file__).resolve().parent
 """The ``scenes/`` folder."""
@@ -31,3 +33,13 @@ def write_or_check(files: dict[str, str], folder: str, *, check: bool) -> int:
         atomic_write_text(ROOT / p, text)
     print(f"wrote {len(files)} files under {where}" + (f", removed {len(stale)} stale scene files" if stale else ""))
     return 0
+
+
+def generator_main(build_files: Callable[[], dict[str, str]], folder: str, description: str,
+                   argv: list[str] | None = None) -> int:
+    """The command line of a generating script: build its files and write them into ``folder``,
+    or with ``--check`` compare them with the shipped ones (:func:`write_or_check`)."""
+    ap = argparse.ArgumentParser(description=description)
+    ap.add_argument("--check", action="store_true", help="compare with the shipped files instead of writing")
+    args = ap.parse_args(argv)
+    return write_or_check(build_files(), folder, check=args.check)
