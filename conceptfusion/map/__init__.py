@@ -7,6 +7,7 @@
 * :mod:`~conceptfusion.map.quantize` - a bounded palette for per-pixel features with no repeats;
 * :mod:`~conceptfusion.map.query` - scores, relative thresholds, relevancy, ``locate``;
 * :mod:`~conceptfusion.map.regions` - connected 3D regions a query selected;
+* :mod:`~conceptfusion.map.thin` - a map thinned to a point budget on a voxel grid;
 * :mod:`~conceptfusion.map.persistence` - versioned atomic ``.npz`` files and PLY export.
 
 May import: :mod:`conceptfusion` base modules and :mod:`conceptfusion.perception`'s data types.

@@ -350,6 +350,33 @@ class PointFusionMap:
         arrays.update(self._store.state(self._n))
         return header, arrays
 
+    def subset(self, indices) -> "PointFusionMap":
+        """A new map holding only the given points, each exactly as it is here (geometry,
+        colour, confidence, bank mixture), with the feature bank cut to the entries they use.
+
+        Shape:
+            ``indices`` (M,) int, distinct, in [0, N) -> a map of M points in that order.
+        """
+        idx = np.asarray(indices, dtype=np.int64).reshape(-1)
+        if idx.size and (idx.min() < 0 or idx.max() >= self._n):
+            raise IndexError(f"indices: expected values in [0, {self._n - 1}], got [{idx.min()}, {idx.max()}]")
+        if len(np.unique(idx)) != len(idx):
+            raise ValueError("indices: expected distinct point indices, got repeats")
+        header, arrays = self.state_dict()
+        ids = arrays["feat_point_ids"][idx]
+        used = np.unique(ids[ids >= 0])
+        remap = np.full(len(arrays["feat_bank"]) + 1, -1, np.int32)  # last entry: id -1 stays -1
+        remap[used] = np.arange(len(used), dtype=np.int32)
+        out = {
+            "geometry": arrays["geometry"][idx],
+            "feat_bank": arrays["feat_bank"][used],
+            "feat_point_ids": remap[ids],
+            "feat_point_w": arrays["feat_point_w"][idx],
+            "feat_point_gram": arrays["feat_point_gram"][idx],
+            "feat_point_sq": arrays["feat_point_sq"][idx],
+        }
+        return PointFusionMap.from_state_dict({**header, "num_points": len(idx)}, out)
+
     @classmethod
     def from_state_dict(cls, header: dict, arrays: dict[str, np.ndarray]) -> "PointFusionMap":
         """Inverse of :meth:`state_dict` (the caller validates shapes)."""

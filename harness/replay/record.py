@@ -54,7 +54,9 @@ import numpy as np
 
 from conceptfusion.errors import HarnessError, MissingFileError, ReplayFormatError
 from conceptfusion.io_utils import atomic_write_bytes
+from conceptfusion.map.fusion import PointFusionMap
 from conceptfusion.map.persistence import save_map
+from conceptfusion.map.thin import thin_map
 from conceptfusion.names import did_you_mean
 from harness.report.paths import MAP_SUFFIX
 from sim_envs.scenes.floorplan import occupancy_grid
@@ -72,10 +74,11 @@ FORMAT_NAME = "cfharness-replay"
 FORMAT_VERSION = 1
 MAP_BUDGET_BYTES = 16 * 2**20
 """A map agent's final map is saved beside its recording (:func:`~conceptfusion.map.persistence.save_map`,
-uncompressed: deflating it would cost more than the 10% of an episode a recording may take) only
-when the map holds at most this many bytes (:meth:`~conceptfusion.map.fusion.PointFusionMap.nbytes`):
-a tabletop map of a scan holds about 8 MB; an apartment map of a whole search episode about
-50 MB, left out. The recording keeps the map's answers either way."""
+uncompressed: deflating it would cost more than the 10% of an episode a recording may take) within
+this many bytes (:meth:`~conceptfusion.map.fusion.PointFusionMap.nbytes`): a tabletop map of a scan
+(about 8 MB) is saved whole; an apartment map of a whole search episode (about 50 MB) is thinned
+to one point per voxel (:func:`~conceptfusion.map.thin.thin_map`; each kept point exact), and the
+recording's header says so. The recording keeps the map's answers either way."""
 
 _FRAME_WIDTH = 160
 _JPEG_QUALITY = 75
@@ -500,12 +503,24 @@ class EpisodeRecorder:
         if not getattr(getattr(mapper, "config", None), "persistent", False):
             return {"skipped": "the agent's map holds its current frame only"}
         size = int(the_map.nbytes()) if hasattr(the_map, "nbytes") else sum(a.nbytes for a in the_map.state_dict()[1].values())
+        info: dict = {}
         if size > MAP_BUDGET_BYTES:
-            return {"skipped": f"the final map ({size / 2**20:.0f} MB) is over the {MAP_BUDGET_BYTES / 2**20:.0f} MB budget of a "
-                               "recording; its answers are recorded"}
+            if not isinstance(the_map, PointFusionMap) or len(the_map) == 0:
+                return {"skipped": f"the final map ({size / 2**20:.0f} MB) is over the {MAP_BUDGET_BYTES / 2**20:.0f} MB budget "
+                                   "of a recording; its answers are recorded"}
+            max_points = int(len(the_map) * MAP_BUDGET_BYTES / size)
+            thinned = thin_map(the_map, max(1, max_points))
+            while thinned.map.nbytes() > MAP_BUDGET_BYTES and max_points > 1:  # the bank's share did not shrink as fast
+                max_points //= 2
+                thinned = thin_map(the_map, max(1, max_points))
+            if thinned.map.nbytes() > MAP_BUDGET_BYTES:
+                return {"skipped": f"the final map ({size / 2**20:.0f} MB) does not fit the {MAP_BUDGET_BYTES / 2**20:.0f} MB "
+                                   "budget of a recording even thinned; its answers are recorded"}
+            info = {"thinned_from": thinned.original_points, "voxel_m": thinned.voxel}
+            the_map = thinned.map
         out = self.path.with_name(self.path.name[: -len(".npz")] + MAP_SUFFIX)
         self.written.append(save_map(the_map, out))
-        return {"file": out.name, "points": int(len(the_map.points)), "bytes": int(out.stat().st_size)}
+        return {"file": out.name, "points": int(len(the_map.points)), "bytes": int(out.stat().st_size), **info}
 
 
 def _jsonable(value):

@@ -212,7 +212,14 @@ def test_the_final_map_is_saved_only_under_the_budget(tmp_path, monkeypatch):
     assert recorder("ok").finish(status="ok", metrics={"success": True}) == []  # a success: nothing written
     monkeypatch.setattr(record_module, "MAP_BUDGET_BYTES", 0)
     (only,) = recorder("over").finish(status="ok", metrics={"success": False})
-    assert only.name == "over.npz" and "over the 0 MB budget" in read_header(only)["map"]["skipped"]
+    assert only.name == "over.npz" and "does not fit the 0 MB budget" in read_header(only)["map"]["skipped"]
+    # a budget of a few points: the map is thinned on a voxel grid to fit, each kept point exact
+    monkeypatch.setattr(record_module, "MAP_BUDGET_BYTES", the_map.nbytes() - 1)
+    written = recorder("thin").finish(status="ok", metrics={"success": False})
+    header = read_header(tmp_path / "thin.npz")["map"]
+    thinned = load_map(tmp_path / "thin.map.npz")
+    assert header["thinned_from"] == len(the_map) > header["points"] == len(thinned) > 0 and header["voxel_m"] > 0
+    assert thinned.nbytes() <= record_module.MAP_BUDGET_BYTES and len(written) == 2
     monkeypatch.setattr(record_module, "MAP_BUDGET_BYTES", 2**30)
     written = recorder("under").finish(status="failed", metrics={"success": False}, error="boom")
     assert [p.name for p in written] == ["under.map.npz", "under.npz"]

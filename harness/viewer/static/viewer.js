@@ -75,8 +75,11 @@ function resize() {
 }
 
 // Level of detail: while the view moves, draw a prefix of the (randomly ordered) points sized to
-// keep about 20-40 frames/s; once it rests, draw them all.
-const lod = { budget: Infinity, lastMove: 0, lastFrame: 0, full: true, wasMoving: false };
+// keep about 20-40 frames/s; once it rests, draw them all. The first moving frame draws at most
+// LOD_FIRST points (a frame the size of a software-rendered 2-frames/s full draw would make the
+// first answer to a query wait for it); later frames adapt the budget to the time they take.
+const LOD_FIRST = 150000;
+const lod = { budget: LOD_FIRST, lastMove: 0, lastFrame: 0, full: true, wasMoving: false };
 function moved() { lod.lastMove = performance.now(); }
 
 function loop(now) {
