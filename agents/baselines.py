@@ -16,7 +16,7 @@ import math
 
 import numpy as np
 
-from agents.concept_map import ConceptMapper
+from agents.concept_map import ConceptMapper, privileged_labels
 from agents.navigator import search_action
 from agents.pusher import push_action
 from conceptfusion.cameras import backproject, transform_points
@@ -108,8 +108,7 @@ class FrameSearcher:
     def act(self, observation, info: dict | None = None) -> np.ndarray:
         pose = np.asarray(observation["base_pose"], np.float64)
         if not self._started:
-            names = dict(enumerate(info["object_names"])) if (self.mapper.privileged and info and "object_names" in info) else None
-            self.mapper.reset(names)
+            self.mapper.reset(**privileged_labels(self.mapper, info))
             self._goal = str(observation["goal"])
             self._started = True
         self.mapper.integrate(observation, segmentation=(info or {}).get("segmentation") if self.privileged else None)

@@ -5,6 +5,10 @@ Perception is chosen per agent with ``encoder``:
 * ``"oracle"`` (privileged): ground-truth segmentation labelled with the MiniLM text embedding of
   each object's name (:class:`conceptfusion.perception.featurizer.OracleFeaturizer`), for upper
   bounds and regression tests that must not depend on perception;
+* ``"oracle-open"`` (privileged): ground-truth segmentation and ground-truth grounding of
+  descriptions (:class:`conceptfusion.perception.featurizer.GroundedOracleFeaturizer`): a
+  description is found exactly where the objects answering to it are (name, synonym,
+  attribute, function, parent group), for upper bounds on the v2 episodes;
 * ``"embedded"`` (default): the shipped image tower + MiniLM text tower with RGB-D mask proposals;
 * any other encoder registry spec (``"hf:..."``, ``"onnx:DIR"``, ``"color"``) with ``proposer``.
 

@@ -8,9 +8,11 @@ found".
 
 Perception is the featurizer's business (built by
 :func:`~conceptfusion.perception.featurizer.make_featurizer`): perceived (mask proposals and an
-encoder) or the privileged oracle (ground-truth segmentation labelled with name embeddings, which
-needs the simulator's segmentation, passed explicitly). :attr:`ConceptMapper.privileged` says
-which; results built on a privileged map must say so.
+encoder) or a privileged oracle (ground-truth segmentation labelled with name embeddings, or with
+orthogonal codes and ground-truth grounding of descriptions, ``oracle-open``; both need the
+simulator's segmentation, passed explicitly, and the labels' names or phrases at
+:meth:`ConceptMapper.reset`, which :func:`privileged_labels` reads from an environment's info).
+:attr:`ConceptMapper.privileged` says which; results built on a privileged map must say so.
 
 A single-frame (2.5D) agent uses the same mapper with ``persistent=False``: every frame
 replaces the map, so answers come from the current view only.
@@ -21,7 +23,7 @@ from __future__ import annotations
 import dataclasses
 from dataclasses import dataclass
 from types import MappingProxyType
-from typing import Mapping, Sequence
+from typing import Iterable, Mapping, Sequence
 
 import numpy as np
 
@@ -30,7 +32,7 @@ from conceptfusion.map.fusion import PointFusionMap
 from conceptfusion.map.query import NEGATIVE_PHRASES, QueryResult, locate
 from conceptfusion.perception.featurizer import FrameFeaturizer
 
-__all__ = ["ConceptMapper", "MapperConfig", "frame_from_observation"]
+__all__ = ["ConceptMapper", "MapperConfig", "frame_from_observation", "privileged_labels"]
 
 
 @dataclass(frozen=True)
@@ -80,6 +82,25 @@ def frame_from_observation(observation: Mapping | RGBDFrame, segmentation: np.nd
     }, segmentation)
 
 
+def privileged_labels(mapper: "ConceptMapper", info: Mapping | None) -> dict:
+    """The keyword arguments of :meth:`ConceptMapper.reset` from an environment's ``info``:
+    ``object_names`` and ``object_phrases`` by segmentation id (object index) when the mapper is
+    privileged and ``info`` has them; empty otherwise (no ground truth is read then).
+
+    Shape:
+        ``info["object_names"]`` (n,) str, ``info["object_phrases"]`` (n,) lists of str ->
+        ``{"object_names": {i: name}, "object_phrases": {i: phrases}}`` (either may be missing).
+    """
+    if not mapper.privileged or not info:
+        return {}
+    out = {}
+    if "object_names" in info:
+        out["object_names"] = dict(enumerate(info["object_names"]))
+    if "object_phrases" in info:
+        out["object_phrases"] = dict(enumerate(info["object_phrases"]))
+    return out
+
+
 class ConceptMapper:
     """Fuse observations into a concept map and answer text queries.
 
@@ -112,12 +133,22 @@ class ConceptMapper:
         """The featurizer's encoder (image queries embed crops with it)."""
         return self.featurizer.encoder
 
-    def reset(self, object_names: Mapping[int, str] | None = None) -> None:
-        """Start an empty map. Oracle perception needs the names of the segmentation ids."""
+    def reset(self, object_names: Mapping[int, str] | None = None,
+              object_phrases: Mapping[int, Iterable[str]] | None = None) -> None:
+        """Start an empty map. Oracle perception needs the names of the segmentation ids
+        (``oracle``) or the phrases each answers to (``oracle-open``); both go to the
+        featurizer's ``reset``. Cached text embeddings are dropped when the featurizer's
+        depend on the scene (``scene_dependent_text``)."""
         self.map = PointFusionMap(self.featurizer.dim, max_depth=self.config.max_depth)
         self.frames = 0
         self._answers.clear()
-        self.featurizer.reset(object_names)
+        if getattr(self.featurizer, "scene_dependent_text", False):
+            self._text_cache.clear()
+            self._negatives = None
+        if object_phrases is None:
+            self.featurizer.reset(object_names)
+        else:
+            self.featurizer.reset(object_names, object_phrases)
 
     @property
     def answers(self) -> Mapping[str, QueryResult]:

@@ -26,7 +26,7 @@ from dataclasses import dataclass, field
 
 import numpy as np
 
-from agents.concept_map import ConceptMapper
+from agents.concept_map import ConceptMapper, privileged_labels
 from agents.frontier import choose_frontier, find_frontiers
 from planners.occupancy import GridConfig, build_occupancy_grid, nearest_free_cell, reachable_goal_near
 from planners.ompl_2d import BasePlannerConfig, plan_base_path
@@ -213,8 +213,7 @@ class MapNavigator:
         pose = np.asarray(observation["base_pose"], np.float64)
         if not self._started:
             self._goal = str(observation["goal"])
-            names = dict(enumerate(info["object_names"])) if (self.mapper.privileged and info and "object_names" in info) else None
-            self.mapper.reset(names)
+            self.mapper.reset(**privileged_labels(self.mapper, info))
             self._started = True
         if self._fuse_now(pose):
             self.mapper.integrate(observation, segmentation=(info or {}).get("segmentation") if self.privileged else None)

@@ -27,7 +27,7 @@ from dataclasses import dataclass
 
 import numpy as np
 
-from agents.concept_map import ConceptMapper
+from agents.concept_map import ConceptMapper, privileged_labels
 from planners.push import plan_push
 
 __all__ = ["PusherConfig", "MapPusher", "parse_push_instruction", "push_action", "scan_frames"]
@@ -110,8 +110,7 @@ class MapPusher:
         self.log: list[str] = []
 
     def _map(self, observation, info) -> None:
-        names = dict(enumerate(info["object_names"])) if (self.mapper.privileged and info and "object_names" in info) else None
-        self.mapper.reset(names)
+        self.mapper.reset(**privileged_labels(self.mapper, info))
         frames = scan_frames(observation) if self.use_scan else scan_frames({k: observation[k] for k in ("rgb", "depth", "K", "cam_to_world")})
         segs = None
         if self.privileged and info is not None:

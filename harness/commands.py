@@ -232,6 +232,7 @@ def cmd_list(args: argparse.Namespace) -> int:
     for name, text in describe_encoders().items():
         print(f"  {name:<16} {text}")
     print("  oracle           privileged: ground-truth segmentation with MiniLM name embeddings (agents only)")
+    print("  oracle-open      privileged: ground-truth segmentation and ground-truth grounding of descriptions (agents only)")
     return 0
 
 
@@ -258,7 +259,7 @@ def add_eval_commands(sub) -> None:
     run.add_argument("--agent-option", action="append", metavar="KEY=VALUE", help="option for agents that accept it, repeatable")
     run.add_argument("--import", dest="plugin", action="append", metavar="MODULE",
                      help="import MODULE first (repeatable): a module that registers agents by name with agents.registry.register_agent")
-    run.add_argument("--encoder", default=None, help="perception for map agents and map suites: embedded, embedded-v2, oracle (privileged), hf:..., onnx:DIR (default: each suite's own, the shipped tower of its world: embedded for v1 suites, embedded-v2 for v2 suites)")
+    run.add_argument("--encoder", default=None, help="perception for map agents and map suites: embedded, embedded-v2, oracle, oracle-open (privileged), hf:..., onnx:DIR (default: each suite's own, the shipped tower of its world: embedded for v1 suites, embedded-v2 for v2 suites)")
     # numbers arrive as text: RunConfig checks them, with the same messages for Python callers
     run.add_argument("--limit", metavar="N", help="first N >= 1 episodes / scenes per suite")
     run.add_argument("--seed", metavar="N", default=0, help="episode seed >= 0 (default 0)")

@@ -12,7 +12,7 @@ from __future__ import annotations
 import numpy as np
 from numba import njit
 
-__all__ = ["merge_geometry", "merge_features", "mixture_scores", "frame_points", "lookup_tables"]
+__all__ = ["merge_geometry", "merge_features", "mixture_scores", "mixture_scores_many", "frame_points", "lookup_tables"]
 
 
 @njit(cache=True, nogil=True)
@@ -108,6 +108,10 @@ def merge_features(point_ids, point_w, point_gram, point_sq, bank_sq, rows, ids,
         point_w[p, j] += alpha[i]
 
 
+_SCORE_BLOCK = 2048
+"""Points per block in :func:`mixture_scores_many` (their ids, weights and norms: 144 kB)."""
+
+
 @njit(cache=True, nogil=True)
 def mixture_scores(point_ids, point_w, point_sq, bank_scores, start, stop, out):
     """Cosine score of points ``start:stop``: ``sum_k w_k bank_scores[id_k] / sqrt(|S|^2)``.
@@ -135,6 +139,26 @@ def _mixture_range(point_ids, point_w, point_sq, bank_scores, start, stop, out, 
                 break
             num += point_w[p, k] * bank_scores[idk]
         out[p] = num / np.sqrt(point_sq[p])
+
+
+@njit(cache=True, nogil=True)
+def mixture_scores_many(point_ids, point_w, point_sq, bank_scores_qb, start, stop, out_qn):
+    """:func:`mixture_scores` for ``Q`` queries over points ``start:stop``: ``out_qn[q]`` is
+    exactly what ``mixture_scores`` writes for query ``q``. The points go in blocks small
+    enough to stay in cache while every query scores them, so the per-point arrays are read
+    from memory once instead of ``Q`` times.
+
+    Shape:
+        ``bank_scores_qb`` (Q, B) float32, ``out_qn`` (Q, N) float32.
+    """
+    k_slots = point_ids.shape[1]
+    for block in range(start, stop, _SCORE_BLOCK):
+        end = min(block + _SCORE_BLOCK, stop)
+        for q in range(bank_scores_qb.shape[0]):
+            if k_slots == 8:
+                _mixture_range(point_ids, point_w, point_sq, bank_scores_qb[q], block, end, out_qn[q], 8)
+            else:
+                _mixture_range(point_ids, point_w, point_sq, bank_scores_qb[q], block, end, out_qn[q], k_slots)
 
 
 @njit(cache=True, nogil=True)

@@ -237,6 +237,29 @@ class FeatureStore:
         run_ranges(score, n, min_chunk=_SCORE_CHUNK)
         return out
 
+    def scores_many(self, queries_qd: np.ndarray, n: int) -> np.ndarray:
+        """:meth:`scores` of several queries in one pass over the points, each row equal to
+        what :meth:`scores` returns for that query.
+
+        Shape:
+            (Q, d) -> (Q, n) float32.
+        """
+        qs = np.asarray(queries_qd, np.float32).reshape(-1, self.dim)
+        cols = []
+        for q in qs:  # one matrix-vector product per query, rounded as in scores()
+            q = q / max(float(np.linalg.norm(q)), 1e-12)
+            cols.append(np.ascontiguousarray(self.bank @ q, np.float32))
+        bank_scores = np.ascontiguousarray(np.stack(cols)) if cols else np.zeros((0, self._num_bank), np.float32)
+        out = np.empty((len(qs), n), np.float32)
+        ids, w, sq = self.point_ids, self.point_w, self.point_sq
+
+        def score(start: int, stop: int) -> None:
+            _kernels.mixture_scores_many(ids, w, sq, bank_scores, start, stop, out)
+
+        if len(qs):
+            run_ranges(score, n, min_chunk=_SCORE_CHUNK)
+        return out
+
     def features(self, idx: np.ndarray, *, chunk: int = 65536) -> np.ndarray:
         """Unit-length features of the given points (zeros for points without one).
 

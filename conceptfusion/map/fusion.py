@@ -195,10 +195,31 @@ class PointFusionMap:
         Shape:
             ``query_d`` (d,) -> (N,) float32 in [-1, 1].
         """
+        return self._store.scores(self.check_query(query_d), self._n)
+
+    def check_query(self, query_d) -> np.ndarray:
+        """``query_d`` as a float array once it is a finite, non-zero vector of the map's
+        dimension (else ``ShapeError`` / ``ValueError`` saying what arrived).
+
+        Shape:
+            (d,) -> (d,).
+        """
         q = as_float_array("query_d", np.asarray(query_d), shape=(self.feature_dim,))
         if not np.all(np.isfinite(q)) or not np.any(q):
             raise ValueError("query_d: expected a finite, non-zero vector")
-        return self._store.scores(q, self._n)
+        return q
+
+    def scores_many(self, queries_qd) -> np.ndarray:
+        """:meth:`scores` of several query vectors in one pass over the map (row ``q`` equals
+        ``scores(queries_qd[q])`` exactly).
+
+        Shape:
+            ``queries_qd`` (Q, d) -> (Q, N) float32.
+        """
+        qs = as_float_array("queries_qd", np.asarray(queries_qd), shape=(None, self.feature_dim))
+        if not np.all(np.isfinite(qs)) or not np.all(np.any(qs != 0, axis=1)):
+            raise ValueError("queries_qd: expected finite, non-zero vectors")
+        return self._store.scores_many(qs, self._n)
 
     # ------------------------------------------------------------------ fusion
     def integrate(self, rgb_hw3, depth_hw, K_33, cam_to_world_44, feats_hwd=None) -> IntegrationStats:

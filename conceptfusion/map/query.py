@@ -187,8 +187,13 @@ def locate(
         ``query_d`` (d,), ``negatives_kd`` (K, d).
     """
     neg = as_float_array("negatives_kd", np.asarray(negatives_kd), shape=(None, map_.feature_dim))
-    scores = map_.scores(query_d)
-    neg_scores = np.stack([map_.scores(n) for n in neg]) if len(neg) else np.zeros((0, len(scores)), np.float32)
+    if hasattr(map_, "scores_many"):  # the query and its negatives in one pass over the map
+        q = map_.check_query(query_d)
+        both = map_.scores_many(np.concatenate([q[None], neg.astype(np.float32)]))
+        scores, neg_scores = both[0], both[1:]
+    else:
+        scores = map_.scores(query_d)
+        neg_scores = np.stack([map_.scores(n) for n in neg]) if len(neg) else np.zeros((0, len(scores)), np.float32)
     rel = relative_scores(scores)
     relev = relevancy(scores, neg_scores, temperature=temperature) if len(neg) else np.ones_like(scores)
     with np.errstate(invalid="ignore"):

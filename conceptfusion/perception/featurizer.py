@@ -1,6 +1,6 @@
 """Perception as one object: a posed RGB-D frame in, pixel-aligned concept features out.
 
-A map is built with a :class:`FrameFeaturizer`, never with a mode flag. Two implementations:
+A map is built with a :class:`FrameFeaturizer`, never with a mode flag. Three implementations:
 
 * :class:`PerceivedFeaturizer`: class-agnostic mask proposals from the frame (a
   :class:`~conceptfusion.perception.masks.base.MaskProposer`) and crop/frame embeddings from an
@@ -10,18 +10,25 @@ A map is built with a :class:`FrameFeaturizer`, never with a mode flag. Two impl
 * :class:`OracleFeaturizer` (**privileged**): each pixel gets the text embedding of its
   ground-truth object's name (:class:`~conceptfusion.perception.oracle.OracleFeatures`); it
   reads ``frame.segmentation`` and needs the names of the segmentation ids at :meth:`reset`.
+* :class:`GroundedOracleFeaturizer` (**privileged**, encoder ``"oracle-open"``): ground-truth
+  segmentation *and* ground-truth grounding of descriptions
+  (:class:`~conceptfusion.perception.oracle.GroundedOracleFeatures`): each segment gets an
+  orthogonal code and a description is embedded as the codes of the segments whose phrase sets
+  contain it, so synonyms, attributes, functions and parent groups are found exactly when they
+  name a segment. It needs each id's phrases at :meth:`reset`; its text embeddings depend on the
+  scene (``scene_dependent_text``).
 
-Both are built from a :class:`PerceptionSpec` (or its command-line string) by the one factory
+All are built from a :class:`PerceptionSpec` (or its command-line string) by the one factory
 :func:`make_featurizer`, which loads each encoder once per process. The spec's string form is
 exactly the encoder spec the harness stores in its records (``"embedded"``, ``"oracle"``,
-``"hf:openai/clip-vit-base-patch32"``).
+``"oracle-open"``, ``"hf:openai/clip-vit-base-patch32"``).
 """
 
 from __future__ import annotations
 
 import functools
 from dataclasses import dataclass
-from typing import Mapping, Protocol, Sequence, runtime_checkable
+from typing import Iterable, Mapping, Protocol, Sequence, runtime_checkable
 
 import numpy as np
 
@@ -30,17 +37,21 @@ from conceptfusion.frames import RGBDFrame
 from conceptfusion.names import unknown_name_error
 from conceptfusion.perception.features import PixelFeatures, check_mode
 from conceptfusion.perception.masks.registry import PROPOSERS, make_proposer
-from conceptfusion.perception.oracle import OracleFeatures
+from conceptfusion.perception.oracle import GROUNDED_ORACLE_DIM, GROUNDED_ORACLE_MIN_SCORE, GroundedOracleFeatures, OracleFeatures
 from conceptfusion.perception.pipeline import frame_features
 from conceptfusion.perception.registry import DEFAULT_ENCODER, ENCODERS, make_encoder
 
 __all__ = [
     "ORACLE",
     "ORACLE_MIN_SCORE",
+    "ORACLE_OPEN",
+    "ORACLE_OPEN_MIN_SCORE",
+    "ORACLE_ENCODERS",
     "PerceptionSpec",
     "FrameFeaturizer",
     "PerceivedFeaturizer",
     "OracleFeaturizer",
+    "GroundedOracleFeaturizer",
     "make_featurizer",
     "load_encoder",
     "perception_names",
@@ -53,13 +64,25 @@ ORACLE_MIN_SCORE = 0.85
 """Score floor with oracle features: exact names score >= 0.9 against their MiniLM text
 embedding, near-miss names (another colour, another kind) <= 0.75."""
 
+ORACLE_OPEN = "oracle-open"
+"""The encoder name of privileged oracle perception with ground-truth grounding of
+descriptions (:class:`GroundedOracleFeaturizer`; not an encoder of the registry)."""
+
+ORACLE_OPEN_MIN_SCORE = GROUNDED_ORACLE_MIN_SCORE
+"""Score floor with ``oracle-open`` features, derived from the construction (see
+:data:`~conceptfusion.perception.oracle.GROUNDED_ORACLE_MIN_SCORE`), not tuned."""
+
+ORACLE_ENCODERS: frozenset[str] = frozenset({ORACLE, ORACLE_OPEN})
+"""The privileged oracle encoder names: ground-truth features with no image tower."""
+
 _ORACLE_TEXT_ENCODER = "minilm-text"
 """The registry encoder whose text embeddings label the oracle's segments."""
 
 
 def perception_names() -> list[str]:
-    """Every valid encoder name of a :class:`PerceptionSpec`: the registry's and ``"oracle"``."""
-    return sorted([*ENCODERS, ORACLE])
+    """Every valid encoder name of a :class:`PerceptionSpec`: the registry's, ``"oracle"`` and
+    ``"oracle-open"``."""
+    return sorted([*ENCODERS, *ORACLE_ENCODERS])
 
 
 @dataclass(frozen=True)
@@ -73,7 +96,7 @@ class PerceptionSpec:
     encoder: str = DEFAULT_ENCODER
     """Encoder registry spec (``"embedded"``, ``"embedded:DIR"``, ``"hf:HUB_ID"``,
     ``"onnx:DIR"``, ``"color"``, ...; see :mod:`conceptfusion.perception.registry`) or
-    ``"oracle"`` (privileged ground-truth features). Stored in records as given."""
+    ``"oracle"`` / ``"oracle-open"`` (privileged ground-truth features). Stored in records as given."""
     proposer: str = "rgbd"
     """Mask proposer registry spec (``"rgbd"``, ``"sam:CKPT"``, ``"gt"``); unused by the oracle."""
     mode: str = "full"
@@ -95,7 +118,7 @@ class PerceptionSpec:
 
     @property
     def encoder_name(self) -> str:
-        """The encoder's registry name (the spec before ``:``, lower case), or ``"oracle"``."""
+        """The encoder's registry name (the spec before ``:``, lower case), or an oracle's name."""
         return self.encoder.strip().partition(":")[0].strip().lower()
 
     @classmethod
@@ -106,7 +129,7 @@ class PerceptionSpec:
 
         Raises:
             UnknownNameError: unknown encoder or proposer name (naming the nearest valid ones).
-            ValueError: ``"oracle:..."`` (the oracle takes no argument) or an unknown mode.
+            ValueError: ``"oracle:..."`` / ``"oracle-open:..."`` (an oracle takes no argument) or an unknown mode.
             TypeError: ``text`` is not a string.
         """
         if isinstance(text, PerceptionSpec):
@@ -126,8 +149,8 @@ class PerceptionSpec:
                 err = UnknownNameError(f"{err} (a model needs a prefix: hf:{text.strip()} for Hugging Face, "
                                        f"onnx:{text.strip()} for an ONNX folder)")
             raise err
-        if self.encoder_name == ORACLE and sep:
-            raise ValueError(f"encoder 'oracle' takes no argument, got {text!r}")
+        if self.encoder_name in ORACLE_ENCODERS and sep:
+            raise ValueError(f"encoder {self.encoder_name!r} takes no argument, got {text!r}")
         prop = self.proposer.strip().partition(":")[0].lower()
         if prop not in PROPOSERS:
             raise unknown_name_error("mask proposer", prop, sorted(PROPOSERS))
@@ -160,8 +183,11 @@ class FrameFeaturizer(Protocol):
         """Unit embeddings of ``texts`` in the features' space. Shape: (n,) -> (n, d) float32."""
         ...
 
-    def reset(self, label_names: Mapping[int, str] | None = None) -> None:
-        """Start a new scene; ``label_names`` (segmentation id -> name) is what the oracle needs."""
+    def reset(self, label_names: Mapping[int, str] | None = None,
+              label_phrases: Mapping[int, Iterable[str]] | None = None) -> None:
+        """Start a new scene; ``label_names`` (segmentation id -> name) is what the oracle
+        needs, ``label_phrases`` (segmentation id -> every phrase its object answers to) what
+        the ``oracle-open`` needs; the others ignore both."""
         ...
 
     def features(self, frame: RGBDFrame) -> PixelFeatures:
@@ -215,8 +241,9 @@ class PerceivedFeaturizer(_EncoderBacked):
         self.score_floor = _score_floor(encoder) if score_floor is ... else score_floor
         self.privileged = bool(getattr(proposer, "privileged", False))
 
-    def reset(self, label_names: Mapping[int, str] | None = None) -> None:
-        """Nothing to forget (the names are for the oracle only)."""
+    def reset(self, label_names: Mapping[int, str] | None = None,
+              label_phrases: Mapping[int, Iterable[str]] | None = None) -> None:
+        """Nothing to forget (the names and phrases are for the oracles only)."""
 
     def features(self, frame: RGBDFrame) -> PixelFeatures:
         """Masks from the proposer, then :func:`~conceptfusion.perception.pipeline.frame_features`.
@@ -248,8 +275,10 @@ class OracleFeaturizer(_EncoderBacked):
         self.score_floor = score_floor
         self._features: OracleFeatures | None = None
 
-    def reset(self, label_names: Mapping[int, str] | None = None) -> None:
-        """Embed the names of the segmentation ids of the new scene (required)."""
+    def reset(self, label_names: Mapping[int, str] | None = None,
+              label_phrases: Mapping[int, Iterable[str]] | None = None) -> None:
+        """Embed the names of the segmentation ids of the new scene (required; ``label_phrases``
+        is ignored)."""
         if not label_names:
             raise ValueError("OracleFeaturizer.reset: expected object names by segmentation id (privileged oracle features)")
         self._features = OracleFeatures(self._encoder, dict(label_names))
@@ -265,6 +294,92 @@ class OracleFeaturizer(_EncoderBacked):
         if frame.segmentation is None:
             raise ValueError("OracleFeaturizer.features: expected the frame's segmentation (privileged)")
         return self._features(frame.segmentation)
+
+
+class _GroundingEncoder:
+    """The text side of a :class:`GroundedOracleFeaturizer` (``encode_text``, ``dim``), for
+    code that asks the featurizer's ``encoder``; text only (no ``encode_image``: image
+    queries are not supported)."""
+
+    def __init__(self, featurizer: "GroundedOracleFeaturizer") -> None:
+        self._featurizer = featurizer
+
+    @property
+    def dim(self) -> int:
+        return self._featurizer.dim
+
+    def encode_text(self, texts: Sequence[str]) -> np.ndarray:
+        return self._featurizer.encode_text(texts)
+
+
+class GroundedOracleFeaturizer:
+    """Privileged features with ground-truth grounding of descriptions (encoder ``"oracle-open"``).
+
+    Each segment gets an orthogonal code; a text is embedded as the codes of the segments of the
+    current scene whose phrase sets contain it (:class:`~conceptfusion.perception.oracle.GroundedOracleFeatures`),
+    so text embeddings depend on the scene (:attr:`scene_dependent_text`): a mapper must not
+    keep them across :meth:`reset`. Image queries are not supported (the encoder is text only).
+
+    Args:
+        dim: feature dimension (segmentation ids must be below ``dim - 1``).
+        score_floor: the text-query floor (default :data:`ORACLE_OPEN_MIN_SCORE`, derived from
+            the construction).
+    """
+
+    privileged = True
+    scene_dependent_text = True
+    """Text embeddings are the current scene's (a mapper clears its text cache on reset)."""
+
+    def __init__(self, *, dim: int = GROUNDED_ORACLE_DIM, score_floor: float | None = ORACLE_OPEN_MIN_SCORE) -> None:
+        if not isinstance(dim, int) or dim < 2:
+            raise ValueError(f"GroundedOracleFeaturizer: dim: expected an int >= 2, got {dim!r}")
+        self._dim = dim
+        self.score_floor = score_floor
+        self._features: GroundedOracleFeatures | None = None
+        self._encoder = _GroundingEncoder(self)
+
+    @property
+    def dim(self) -> int:
+        return self._dim
+
+    @property
+    def encoder(self):
+        """A text-only encoder (``encode_text``, ``dim``) grounding texts in the current scene."""
+        return self._encoder
+
+    def reset(self, label_names: Mapping[int, str] | None = None,
+              label_phrases: Mapping[int, Iterable[str]] | None = None) -> None:
+        """Ground the new scene: ``label_phrases`` (segmentation id -> every phrase its object
+        answers to) is required; ``label_names`` is not used (a name counts only as one of the
+        phrases).
+
+        Raises:
+            ValueError: no phrases, or a segmentation id >= ``dim - 1``.
+        """
+        if not label_phrases:
+            raise ValueError("GroundedOracleFeaturizer.reset: expected the phrases each object answers to by segmentation id "
+                             "(label_phrases; the environment's privileged info['object_phrases']), got none")
+        self._features = GroundedOracleFeatures(dict(label_phrases), dim=self._dim)
+
+    def _grounding(self, what: str) -> GroundedOracleFeatures:
+        if self._features is None:
+            raise RuntimeError(f"GroundedOracleFeaturizer: call reset(label_phrases=...) before {what}")
+        return self._features
+
+    def encode_text(self, texts: Sequence[str]) -> np.ndarray:
+        """Texts grounded in the current scene. Shape: (n,) -> (n, dim) float32 unit rows."""
+        return self._grounding("encode_text()").encode_text(texts)
+
+    def features(self, frame: RGBDFrame) -> PixelFeatures:
+        """Features from ``frame.segmentation`` (required).
+
+        Shape:
+            frame (H, W) with segmentation (H, W) int -> PixelFeatures (H, W).
+        """
+        grounding = self._grounding("features()")
+        if frame.segmentation is None:
+            raise ValueError("GroundedOracleFeaturizer.features: expected the frame's segmentation (privileged)")
+        return grounding(frame.segmentation)
 
 
 @functools.lru_cache(maxsize=4)
@@ -286,5 +401,7 @@ def make_featurizer(spec: "PerceptionSpec | str" = DEFAULT_ENCODER) -> FrameFeat
     spec = PerceptionSpec.parse(spec)
     if spec.encoder_name == ORACLE:
         return OracleFeaturizer(load_encoder(_ORACLE_TEXT_ENCODER))
+    if spec.encoder_name == ORACLE_OPEN:
+        return GroundedOracleFeaturizer()
     return PerceivedFeaturizer(load_encoder(spec.encoder), make_proposer(spec.proposer),
                                mode=spec.mode, uniqueness=spec.uniqueness)

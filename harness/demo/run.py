@@ -26,7 +26,7 @@ import numpy as np
 from conceptfusion.cameras import intrinsics_from_fovy
 from conceptfusion.map.fusion import PointFusionMap
 from conceptfusion.perception.pipeline import frame_features
-from conceptfusion.perception.featurizer import ORACLE, PerceptionSpec, make_featurizer
+from conceptfusion.perception.featurizer import ORACLE_ENCODERS, PerceptionSpec, make_featurizer
 from conceptfusion.synthetic import Box, orbit_poses, render_boxes, tabletop_boxes
 from harness.demo.scoring import DemoConfig, demo_summary, score_queries
 from harness.demo.tabletop import run_tabletop_demo
@@ -54,8 +54,8 @@ def run_demo(config: DemoConfig = DemoConfig(), out_dir: Path | None = None) -> 
         ValueError: unknown encoder spec (with the nearest names).
     """
     spec = PerceptionSpec.parse(config.encoder, proposer=config.proposer)
-    if spec.encoder_name == ORACLE:
-        raise ValueError("encoder 'oracle': the demo shows perception; choose an encoder such as 'embedded' or 'color'")
+    if spec.encoder_name in ORACLE_ENCODERS:
+        raise ValueError(f"encoder {spec.encoder_name!r}: the demo shows perception; choose an encoder such as 'embedded' or 'color'")
     featurizer = make_featurizer(spec)
     if spec.encoder_name != "color":
         return {"encoder": config.encoder, **run_tabletop_demo(config, featurizer, out_dir)}

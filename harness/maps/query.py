@@ -2,7 +2,7 @@
 tabletop map, scored against simulator ground truth.
 
 **Task**: scan a shipped tabletop scene (orbit), fuse a map with the run's encoder and the
-``rgbd`` proposer (oracle: privileged ground-truth features), then query every visible object
+``rgbd`` proposer (oracles: privileged ground-truth features), then query every visible object
 by its name (text), by a crop of it seen from a viewpoint outside the scan (image; lower and
 closer orbit, cropped by its ground-truth mask box) and by a click on its surface (the fused
 concept vector of the map point nearest its box centre).
@@ -16,7 +16,7 @@ threshold 0.6 for text and image, 0.8 for clicks as in the paper) and ``thresh``
 whose relative score passes that threshold). Per modality: mIoU, detection accuracy at IoU >
 0.15 / 0.25 / 0.5, found rate. ``absent_fp_rate``: two names of objects from other shipped
 scenes are queried; a ``found=True`` is a false positive. Image queries need an image tower:
-with the oracle their metrics are ``None``. Objects with no map point are skipped (counted).
+with an oracle (``oracle``, ``oracle-open``) their metrics are ``None``. Objects with no map point are skipped (counted).
 """
 
 from __future__ import annotations
@@ -29,6 +29,7 @@ from pathlib import Path
 import numpy as np
 
 from agents.builtin import make_mapper
+from conceptfusion.perception.featurizer import ORACLE_ENCODERS
 from harness.maps.scan import SceneScan, fuse_frames, load_shipped_scene, point_labels, scan_tabletop, shipped_scene_ids
 from sim_envs.mujoco.scan import render_views
 
@@ -143,7 +144,7 @@ def run_query_scene(
     fmap = mapper.map
     pts = fmap.points
     gt = point_labels(pts, scan.object_boxes)
-    views = None if encoder == "oracle" else _novel_views(scan, width, height)
+    views = None if encoder in ORACLE_ENCODERS else _novel_views(scan, width, height)
     from conceptfusion.map.query import click_query_vector
 
     ious = {m: [] for m in MODALITIES}

@@ -5,7 +5,8 @@
 objects each from the object library), the first :data:`DEFAULT_SCENES` by default.
 
 **Task**: scan a scene (orbit), fuse a map with the run's encoder and the ``rgbd`` proposer
-(oracle: privileged ground-truth features labelled with each object's name), then query it in
+(``oracle``: privileged ground-truth features labelled with each object's name; ``oracle-open``:
+privileged ground-truth features and ground-truth grounding of the phrases), then query it in
 words of seven kinds (:data:`QUERY_KINDS`), phrased as an instruction would name the object:
 
 - ``name``: the category name, ``"the mug"``;

@@ -6,22 +6,26 @@ Everything here is deterministic: a scene id, a trajectory and image size fix th
 Label images: every rendered pixel carries one label, objects ``0..n-1`` (the scene's object
 order), furniture ``n..n+F-1``, then the table top and legs (``"table"``) and the floor plane
 (``"floor"``) of tabletop scenes; -1 elsewhere (walls, room floors, sky). Oracle features read
-these labels (privileged), so the oracle also knows furniture, the table and the floor.
+these labels (privileged), so the oracles also know furniture, the table and the floor: the
+``oracle`` by their names, the ``oracle-open`` by their phrases (an object's
+:func:`~sim_envs.scenes.descriptions.answer_phrases`; furniture, the table and the floor answer
+to their own name, ``"the table"``).
 """
 
 from __future__ import annotations
 
-from dataclasses import dataclass
+from dataclasses import dataclass, field
 
 import numpy as np
 
 from conceptfusion.frames import RGBDFrame
+from sim_envs.scenes.descriptions import answer_phrases
 from sim_envs.scenes.episodes import SCENES_ROOT
 from sim_envs.scenes.format import Scene, load_scene
 
 __all__ = [
     "SCENE_KINDS", "SceneScan", "shipped_scene_ids", "load_shipped_scene", "scan_scene", "scan_tabletop",
-    "fuse_frames", "point_labels",
+    "fuse_frames", "point_labels", "scene_label_phrases",
 ]
 
 SCENE_KINDS = ("tabletop", "household")
@@ -44,6 +48,10 @@ class SceneScan:
     """The ground-truth scene graph (:func:`sim_envs.scenes.graph.scene_graph`)."""
     geom_labels: np.ndarray
     """Label per geom, (ngeom,) int32."""
+    label_phrases: dict[int, list[str]] = field(default_factory=dict)
+    """Label id -> every phrase it answers to (objects: their
+    :func:`~sim_envs.scenes.descriptions.answer_phrases`; furniture, the table, the floor: their
+    name, ``"the table"``), for the ``oracle-open`` perception (privileged)."""
 
     @property
     def num_objects(self) -> int:
@@ -66,6 +74,12 @@ def load_shipped_scene(scene_id: str) -> Scene:
     if not path.exists():
         raise ValueError(f"scene_id: no shipped scene {scene_id!r} (shipped: {', '.join(shipped_scene_ids(kind)[:5])}, ...)")
     return load_scene(path)
+
+
+def scene_label_phrases(scene: Scene, label_names: dict[int, str]) -> dict[int, list[str]]:
+    """The phrases each label answers to (see :attr:`SceneScan.label_phrases`)."""
+    n = len(scene.objects)
+    return {k: answer_phrases(scene.objects[k]) if k < n else [f"the {name}"] for k, name in label_names.items()}
 
 
 def _geom_labels(sim) -> tuple[np.ndarray, dict[int, str]]:
@@ -100,7 +114,7 @@ def scan_scene(scene: Scene, *, frames: int, width: int, height: int) -> SceneSc
         raise ValueError(f"scan: expected frames >= 1 and an image of at least 8x8, got {frames} frames of {width}x{height}")
     sim = build_mujoco(scene)
     labels, names = _geom_labels(sim)
-    scan = SceneScan(scene, sim, [], names, object_aabbs(sim), scene_graph(sim), labels)
+    scan = SceneScan(scene, sim, [], names, object_aabbs(sim), scene_graph(sim), labels, scene_label_phrases(scene, names))
     scan.frames = scan_views(sim, frames, width, height, geom_labels=labels)
     return scan
 
@@ -117,12 +131,15 @@ def scan_tabletop(scene_id: str, suite: str, *, frames: int, width: int, height:
 def fuse_frames(mapper, scan: SceneScan, frames: list[RGBDFrame] | None = None):
     """Reset ``mapper`` and fuse ``frames`` (default: the whole scan); returns the mapper.
 
-    The scan's label names and label images (ground truth) reach the mapper only when its
-    perception is privileged (``mapper.privileged``: the oracle, ground-truth masks).
+    The scan's label names, label phrases and label images (ground truth) reach the mapper only
+    when its perception is privileged (``mapper.privileged``: the oracles, ground-truth masks).
     Build the mapper with :func:`agents.builtin.make_mapper`, as the agents do; its featurizer
     loads each encoder once per process."""
     privileged = bool(mapper.privileged)
-    mapper.reset(scan.label_names if privileged else None)
+    if privileged:
+        mapper.reset(scan.label_names, scan.label_phrases)
+    else:
+        mapper.reset()
     for f in scan.frames if frames is None else frames:
         mapper.integrate(f.observation(), segmentation=f.segmentation if privileged else None)
     return mapper

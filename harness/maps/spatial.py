@@ -37,6 +37,7 @@ import numpy as np
 
 from agents.builtin import make_mapper
 from agents.spatial.parser import clean_noun_phrase, make_parser
+from conceptfusion.perception.featurizer import ORACLE_ENCODERS
 from conceptfusion.spatial.comparators import get_comparator
 from harness.maps.scan import SceneScan, fuse_frames, load_shipped_scene, scan_scene
 from harness.maps.spatial_questions import PER_SCENE, QUESTION_TYPES, askable, generate_questions
@@ -184,6 +185,6 @@ def run_spatial_scene(
     t_scan = time.perf_counter() - t0
     answered = answer_questions(scan, questions, method, encoder, parser=parser)
     extras = {"questions": answered, "frames": n, "image_size": [width, height], "parser": parser,
-              "privileged": encoder == "oracle"}
+              "privileged": encoder in ORACLE_ENCODERS}
     timings = {"scan_s": t_scan, "answer_s": time.perf_counter() - t0 - t_scan}
     return spatial_metrics(answered), extras, timings

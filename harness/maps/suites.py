@@ -22,7 +22,7 @@ from pathlib import Path
 from typing import Callable
 
 from conceptfusion.names import lookup
-from conceptfusion.perception.featurizer import ORACLE, make_featurizer
+from conceptfusion.perception.featurizer import ORACLE_ENCODERS, make_featurizer
 from harness.maps.ablation import VARIANTS, run_ablation_scene
 from harness.maps.query import run_query_scene
 from harness.maps.query_open import open_scene_ids, run_open_query_scene
@@ -75,10 +75,10 @@ def scene_ids(kind: str, limit: int | None) -> list[str]:
 def ablation_encoder(encoder: str) -> tuple[str, str]:
     """The encoder the ablation uses for a run's encoder, and why it differs (empty if not).
 
-    The oracle has no image embeddings to mix, so it falls back to ``"embedded"`` when the
-    shipped tower loads, else to ``"color"``.
+    The oracles (``oracle``, ``oracle-open``) have no image embeddings to mix, so they fall
+    back to ``"embedded"`` when the shipped tower loads, else to ``"color"``.
     """
-    if encoder != ORACLE:
+    if encoder not in ORACLE_ENCODERS:
         return encoder, ""
     try:
         make_featurizer("embedded")  # loads the tower once per process

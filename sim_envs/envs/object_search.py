@@ -27,6 +27,7 @@ from sim_envs.envs.checks import (
 from sim_envs.envs.rendering import LastFrameRendering, check_render_mode, frame_spaces
 from sim_envs.mujoco.camera import MujocoRGBDCamera
 from sim_envs.mujoco.scene import build_mujoco
+from sim_envs.scenes.descriptions import answer_phrases
 from sim_envs.scenes.episodes import Episode, EpisodeSet, resolve_scene
 from sim_envs.scenes.floorplan import occupancy_grid
 from sim_envs.scenes.graph import object_aabbs, scene_graph
@@ -67,8 +68,9 @@ class ObjectSearchEnv(EpisodeLifecycle, LastFrameRendering, gym.Env):
 
     **Observations** (Dict): ``rgb`` (H, W, 3) uint8, ``depth`` (H, W) float32 metres (inf: no
     hit), ``K`` (3, 3), ``cam_to_world`` (4, 4) OpenCV, ``base_pose`` (3,) x, y, yaw odometry,
-    ``goal`` text. Ground truth (segmentation, object names, the goal id, the distance to the
-    goal; at reset also the scene graph, the free cells ``free_grid`` (H, W) bool with
+    ``goal`` text. Ground truth (segmentation, object names, ``object_phrases``: per object the
+    sorted phrases it answers to (:func:`~sim_envs.scenes.descriptions.answer_phrases`), the
+    goal id, the distance to the goal; at reset also the scene graph, the free cells ``free_grid`` (H, W) bool with
     ``grid_origin`` and ``grid_cell``, the goal's box ``goal_aabb`` (2, 3) and
     ``success_distance``) is in ``info`` only.
 
@@ -139,6 +141,7 @@ class ObjectSearchEnv(EpisodeLifecycle, LastFrameRendering, gym.Env):
         self._sim = None
         self._camera: MujocoRGBDCamera | None = None
         self._scene_key = None
+        self._object_phrases: list[list[str]] = []
         self._last_frame = None
         self._pose: np.ndarray | None = None
         self._goal_box: np.ndarray | None = None
@@ -162,6 +165,7 @@ class ObjectSearchEnv(EpisodeLifecycle, LastFrameRendering, gym.Env):
             self._occ, self._free = occ, clearance > self.robot_radius
             self._scene_key = scene.id
         self.scene = scene
+        self._object_phrases = [answer_phrases(o) for o in scene.objects]
 
     def _is_free(self, xy) -> bool:
         occ = self._occ
@@ -272,6 +276,7 @@ class ObjectSearchEnv(EpisodeLifecycle, LastFrameRendering, gym.Env):
             "segmentation": f.segmentation,
             "object_ids": [o.id for o in self.scene.objects],
             "object_names": [o.name for o in self.scene.objects],
+            "object_phrases": [list(p) for p in self._object_phrases],
             "goal_object_id": self.episode.goals[0].object_id,
             "distance_to_goal": box_distance_xy(self._pose[:2], self._goal_box[0, :2], self._goal_box[1, :2]),
             "shortest_path_length": self._shortest,

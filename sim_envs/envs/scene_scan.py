@@ -12,6 +12,7 @@ from sim_envs.envs.checks import EpisodeLifecycle, check_choice, check_fovy, che
 from sim_envs.envs.rendering import LastFrameRendering, check_render_mode, frame_spaces
 from sim_envs.mujoco.camera import MujocoRGBDCamera
 from sim_envs.mujoco.scene import build_mujoco, split_labels
+from sim_envs.scenes.descriptions import answer_phrases
 from sim_envs.scenes.format import Scene
 from sim_envs.scenes.gen_tabletop import generate_tabletop
 from sim_envs.scenes.gen_household import generate_household
@@ -41,8 +42,10 @@ class SceneScanEnv(EpisodeLifecycle, LastFrameRendering, gym.Env):
 
     **Success**: not applicable; the episode ends (``terminated``) after the last frame. The
     ground-truth scene graph and the instance segmentation (``segmentation``: object index;
-    ``furniture_segmentation``: furniture index; -1 elsewhere) are in ``info`` for scoring,
-    never in the observation.
+    ``furniture_segmentation``: furniture index; -1 elsewhere), ``object_ids``,
+    ``object_names`` and ``object_phrases`` (per object, the sorted phrases it answers to:
+    :func:`~sim_envs.scenes.descriptions.answer_phrases`) are in ``info`` for scoring and
+    privileged perception, never in the observation.
 
     Observation (Dict): ``rgb`` (H, W, 3) uint8, ``depth`` (H, W) float32 metres (``inf``
     where nothing is hit), ``K`` (3, 3), ``cam_to_world`` (4, 4) OpenCV convention,
@@ -89,6 +92,7 @@ class SceneScanEnv(EpisodeLifecycle, LastFrameRendering, gym.Env):
         self._sim = None
         self._camera: MujocoRGBDCamera | None = None
         self._traj: list[tuple] = []
+        self._object_phrases: list[list[str]] = []
         self._k = 0
         self._last_frame = None
 
@@ -103,6 +107,7 @@ class SceneScanEnv(EpisodeLifecycle, LastFrameRendering, gym.Env):
             self._sim.model, self._sim.data, self.width, self.height, fovy_deg=self.fovy_deg, geom_object=self._sim.geom_labels()
         )
         self._traj = scan_trajectory(scene, self.num_frames)
+        self._object_phrases = [answer_phrases(o) for o in scene.objects]
         self._k = 0
         out = self._observe()
         self._episode_started()
@@ -132,6 +137,7 @@ class SceneScanEnv(EpisodeLifecycle, LastFrameRendering, gym.Env):
             "furniture_segmentation": seg_furniture,
             "object_ids": [o.id for o in scene.objects],
             "object_names": [o.name for o in scene.objects],
+            "object_phrases": [list(p) for p in self._object_phrases],
             "furniture_ids": [p.id for p in scene.furniture],
             "scene_graph": scene_graph(self._sim),
         }

@@ -21,6 +21,7 @@ from sim_envs.envs.checks import (
 from sim_envs.envs.rearrange_eval import VIEW_DIR, RearrangeResult, evaluate, line_normal
 from sim_envs.envs.rendering import LastFrameRendering, check_render_mode, frame_spaces
 from sim_envs.envs.tabletop_sim import TabletopSim
+from sim_envs.scenes.descriptions import answer_phrases
 from sim_envs.scenes.format import Scene
 from sim_envs.scenes.gen_tabletop import generate_tabletop
 from sim_envs.scenes.graph import scene_graph
@@ -111,7 +112,8 @@ class TabletopRearrangeEnv(EpisodeLifecycle, LastFrameRendering, gym.Env):
     if success holds then, else 0.
 
     ``info`` (ground truth, for scoring and privileged agents only): ``segmentation``,
-    ``object_ids``, ``object_names``, ``object_poses`` (n, 7), ``object_aabbs`` (n, 2, 3),
+    ``object_ids``, ``object_names``, ``object_phrases`` (per object, the sorted phrases it
+    answers to: :func:`~sim_envs.scenes.descriptions.answer_phrases`), ``object_poses`` (n, 7), ``object_aabbs`` (n, 2, 3),
     ``object_sizes`` (n, 3) (box size in the object frame, base at its origin; these three are
     nested lists, since n varies between scenes and vector envs batch array-valued info),
     ``scan_segmentation`` (n, h, w) int32 (with ``scan_frames``),
@@ -192,6 +194,7 @@ class TabletopRearrangeEnv(EpisodeLifecycle, LastFrameRendering, gym.Env):
         self.sim: TabletopSim | None = None
         self.episode: Episode | None = None
         self._start_poses = None
+        self._object_phrases: list[list[str]] = []
         self._steps = 0
         self._last_frame: RGBDFrame | None = None
         self._last_push: dict = {}
@@ -226,6 +229,7 @@ class TabletopRearrangeEnv(EpisodeLifecycle, LastFrameRendering, gym.Env):
         self.sim = make_backend(self.backend, scene, seed=int(self.np_random.integers(0, 2**31 - 1)))
         self.episode = ep
         self._start_poses = self.sim.object_poses()
+        self._object_phrases = [answer_phrases(o) for o in scene.objects]
         self._steps = 0
         self._last_push = {}
         out = self._observe()
@@ -289,6 +293,7 @@ class TabletopRearrangeEnv(EpisodeLifecycle, LastFrameRendering, gym.Env):
             **({"scan_segmentation": scan_seg} if scan_seg is not None else {}),
             "object_ids": [o.id for o in scene.objects],
             "object_names": [o.name for o in scene.objects],
+            "object_phrases": [list(p) for p in self._object_phrases],
             "object_poses": self.sim.object_poses().tolist(),
             "object_aabbs": self.sim.object_aabbs().tolist(),
             "object_sizes": [list(o.size) for o in scene.objects],

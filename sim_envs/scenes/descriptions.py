@@ -28,7 +28,7 @@ import numpy as np
 from sim_envs.assets.library import MATERIALS, PALETTE, catalogue, instance_of_asset, is_library_asset
 from sim_envs.scenes.format import SceneObject
 
-__all__ = ["DESCRIPTION_KINDS", "Describable", "describable", "candidates", "describe", "referents"]
+__all__ = ["DESCRIPTION_KINDS", "Describable", "describable", "answer_phrases", "candidates", "describe", "referents"]
 
 DESCRIPTION_KINDS: tuple[str, ...] = ("name", "synonym", "attribute", "function", "parent")
 """The kinds of description, in a fixed order."""
@@ -107,6 +107,13 @@ def describable(obj: SceneObject) -> Describable:
         return Describable(cat_name, (), obj.color, material, (), ())
     parents = tuple(p for p in catalogue().ancestors(cat.name) if p != _ROOT)
     return Describable(cat.name, tuple(cat.synonyms), obj.color, material, tuple(cat.functions), parents)
+
+
+def answer_phrases(obj: SceneObject) -> list[str]:
+    """Every phrase ``obj`` answers to (:meth:`Describable.answers_to`), sorted: what the
+    environments give privileged agents as ``info["object_phrases"]`` and what ground-truth
+    grounding of descriptions (the ``oracle-open`` perception) reads."""
+    return sorted(describable(obj).answers_to())
 
 
 def candidates(obj: SceneObject, scene_objects: Sequence[SceneObject], kind: str) -> tuple[str, ...]:

@@ -259,6 +259,7 @@ def _run_cli(tmp_path, *args):
                           cwd=REPO, env=env, capture_output=True, text=True, timeout=900)
 
 
+@pytest.mark.gate
 @pytest.mark.parametrize("suite, agent, builtin", [
     ("regression-rearrange", "cf_sabotage:WrongWayPusher", "map-pusher"),
     ("regression-search", "cf_sabotage:NeverStops", "oracle-searcher"),

@@ -28,6 +28,7 @@ def _outcome(rec: dict) -> tuple:
     return rec["suite"], rec["agent"], rec["episode_id"], rec["status"], json.dumps(rec["metrics"], sort_keys=True)
 
 
+@pytest.mark.gate
 def test_regression_suites_meet_their_floors(tmp_path):
     """The CI regression gate: every built-in agent of both tasks (map-equipped, map-free,
     random and privileged) runs its pinned episodes headless, with oracle perception and with
