@@ -34,6 +34,7 @@ from typing import Callable, Sequence
 
 import numpy as np
 
+from sim_envs.scenes.splits import V1_FLOOR_CALIBRATION_SCENES, V1_FLOOR_VALIDATION_SCENES
 from tower_training.data import BACKGROUND_CLASS, SOURCES, CropData, ObjectClass
 
 __all__ = [
@@ -149,14 +150,12 @@ def evaluate_crops(
 class FloorConfig:
     """What the score-floor calibration scans and queries (cheap by default: ~1 min on 2 cores)."""
 
-    calibration_scenes: tuple[str, ...] = (
-        "tabletop-0111", "tabletop-1448", "tabletop-2416", "tabletop-3988", "tabletop-5749", "tabletop-7474",
-    )
-    """Shipped tabletop scenes the floor is chosen on (every 8th shipped scene)."""
-    validation_scenes: tuple[str, ...] = (
-        "tabletop-1055", "tabletop-1573", "tabletop-2859", "tabletop-4881", "tabletop-6667", "tabletop-8559",
-    )
-    """Other shipped tabletop scenes (every 8th from the 5th), on which the chosen floor is only measured."""
+    calibration_scenes: tuple[str, ...] = V1_FLOOR_CALIBRATION_SCENES
+    """Shipped tabletop scenes the floor is chosen on (every 8th shipped scene; reserved in the split
+    file, so no evaluation suite uses them)."""
+    validation_scenes: tuple[str, ...] = V1_FLOOR_VALIDATION_SCENES
+    """Other shipped tabletop scenes (every 8th from the 5th), on which the chosen floor is only
+    measured (reserved in the split file too)."""
     frames: int = 12
     """Frames of the orbit scan (as the ``query`` map suite)."""
     width: int = 160

@@ -28,12 +28,14 @@ from harness.maps.query import run_query_scene
 from harness.maps.query_open import open_scene_ids, run_open_query_scene
 from harness.maps.scan import shipped_scene_ids
 from harness.maps.spatial import DEFAULT_PARSER, METHODS, run_spatial_scene
+from sim_envs.scenes.splits import splits
 
 __all__ = ["MapCase", "MapSuite", "MAP_SUITES", "get_map_suite", "scene_ids", "DEFAULT_SCENES", "ablation_encoder",
            "heatmap_file"]
 
 DEFAULT_SCENES = {"tabletop": 6, "household": 4}
-"""How many shipped scenes of each kind a suite uses by default (the first ones, sorted)."""
+"""How many shipped scenes of each kind a suite uses by default (the first ones, sorted, that the
+split file does not reserve)."""
 
 
 @dataclass(frozen=True)
@@ -65,11 +67,14 @@ class MapSuite:
 
 
 def scene_ids(kind: str, limit: int | None) -> list[str]:
-    """The first ``limit`` shipped scenes of ``kind`` (default :data:`DEFAULT_SCENES`)."""
+    """The first ``limit`` shipped scenes of ``kind`` (default :data:`DEFAULT_SCENES`), sorted, that
+    are not reserved by the split file (:meth:`sim_envs.scenes.splits.Splits.is_reserved_scene`:
+    scenes that calibrated the v1 tower's score floor never enter an evaluation suite)."""
     n = DEFAULT_SCENES[kind] if limit is None else int(limit)
     if n < 0:
         raise ValueError(f"limit: expected a non-negative number of scenes, got {limit}")
-    return shipped_scene_ids(kind)[:n]
+    split = splits()
+    return [s for s in shipped_scene_ids(kind) if not split.is_reserved_scene(s)][:n]
 
 
 def ablation_encoder(encoder: str) -> tuple[str, str]:

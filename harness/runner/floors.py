@@ -90,7 +90,7 @@ from harness.report.stats import metric_value
 from harness.runner.backends import run_jobs
 from harness.runner.results import append_record, completed_keys, latest_records, load_results, record_key
 from harness.runner.run import RunConfig, episode_jobs
-from harness.runner.suites import FLOORS_FILE, SUITES, Suite, suite_encoder
+from harness.runner.suites import FLOORS_FILE, SUITES, Suite, suite_encoder, suite_episodes
 from sim_envs.scenes.episodes import SCENES_ROOT, load_episodes
 
 __all__ = [
@@ -329,7 +329,7 @@ def _settings(suite: Suite) -> dict:
 
 
 def _max_episodes(suite: Suite) -> int:
-    available = len(load_episodes(suite.episodes_file).episodes)
+    available = len(suite_episodes(suite))
     return min(MAX_EPISODES.get(suite.name, available), available)
 
 

@@ -36,9 +36,8 @@ from harness.runner.results import (
     agent_label, append_record, completed_keys, load_results, read_run_config, record_key, repair_results, write_run_config,
 )
 from harness.runner.settings import accepts_keyword, check_agent, validate_run_config
-from harness.runner.suites import Suite, get_suite, suite_encoder
+from harness.runner.suites import Suite, get_suite, suite_encoder, suite_episodes
 from harness.runner.tasks import EpisodeJob
-from sim_envs.scenes.episodes import load_episodes
 
 __all__ = ["RunConfig", "RunPlan", "plan_run", "episode_jobs", "suite_jobs", "run_suites", "Progress"]
 
@@ -144,13 +143,14 @@ def _agent_kwargs_for(agent: str, encoder: str, extra: dict) -> dict:
 
 def episode_jobs(suite: Suite, config: RunConfig, run_id: str, *, out_dir: str | Path | None = None) -> list[EpisodeJob]:
     """Jobs of an episode suite: every (agent, episode, seed) triple, agents in order, then
-    episodes (the first ``config.limit``, else the suite's ``agent_limits`` for the agent, else
-    its ``limit``), then the ``config.seeds`` seeds from ``config.seed``. With ``out_dir`` (the run
+    episodes (of :func:`~harness.runner.suites.suite_episodes`, which leaves out reserved scenes:
+    the first ``config.limit``, else the suite's ``agent_limits`` for the agent, else its
+    ``limit``), then the ``config.seeds`` seeds from ``config.seed``. With ``out_dir`` (the run
     folder) the jobs record episodes as ``config.record`` says into ``out_dir/replays/``; without
     it they record nothing."""
     import_plugins(config.plugins)
     out = None if out_dir is None else str(Path(out_dir).resolve())
-    all_episodes = load_episodes(suite.episodes_file).episodes
+    all_episodes = suite_episodes(suite)
     agents = config.agents or suite.agents
     jobs = []
     for agent in agents:

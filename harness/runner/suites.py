@@ -28,6 +28,10 @@ the first episodes of the shipped files and hold every built-in agent to a succe
 random agents to a ceiling), run in CI. Floors, ceilings and each agent's episode count are not
 set here: they are derived by :mod:`harness.runner.floors` from recorded calibration runs over
 other episodes of the same generators (``calibration_file``) and read from :data:`FLOORS_FILE`.
+
+Every episode suite runs :func:`suite_episodes`: the episodes of its file minus those on scenes the
+split file reserves (:mod:`sim_envs.scenes.splits`: the shipped scenes that chose or measured the
+v1 tower's score floor); ``limit`` and the per-agent counts take the first episodes of what is left.
 """
 
 from __future__ import annotations
@@ -39,9 +43,11 @@ import json
 
 from conceptfusion.errors import HarnessError
 from conceptfusion.names import lookup
-from sim_envs.scenes.episodes import SCENES_ROOT
+from sim_envs.scenes.episodes import SCENES_ROOT, Episode, load_episodes
+from sim_envs.scenes.splits import splits
 
-__all__ = ["Suite", "SUITES", "get_suite", "DEFAULT_SUITES", "suite_encoder", "FLOORS_FILE", "calibrated_bounds"]
+__all__ = ["Suite", "SUITES", "get_suite", "DEFAULT_SUITES", "suite_encoder", "suite_episodes", "FLOORS_FILE",
+           "calibrated_bounds"]
 
 FLOORS_FILE = Path(__file__).resolve().parents[1] / "data" / "floors" / "floors.json"
 """The regression suites' floors, ceilings and episode counts, written by
@@ -87,7 +93,7 @@ class Suite:
     timeout_s: float = 600.0
     """Per-episode limit; past it the episode is recorded as ``timeout``."""
     limit: int | None = None
-    """Use only the first ``limit`` episodes (None: all)."""
+    """Use only the first ``limit`` episodes of :func:`suite_episodes` (None: all)."""
     floors: dict = field(default_factory=dict)
     """Agent -> minimum success rate (regression suites; from :data:`FLOORS_FILE`)."""
     ceilings: dict = field(default_factory=dict)
@@ -178,6 +184,19 @@ def suite_encoder(suite: Suite, run_encoder: str | None) -> str:
     """The perception a suite runs with: its pinned encoder, else the run's ``--encoder``, else
     the suite's default (the shipped tower of its world)."""
     return suite.encoder or run_encoder or suite.default_encoder
+
+
+def suite_episodes(suite: Suite) -> list[Episode]:
+    """The episodes an episode suite may run, in file order: those of ``suite.episodes_file`` whose
+    scene the split file does not reserve (:meth:`sim_envs.scenes.splits.Splits.is_reserved_scene`).
+
+    Raises:
+        HarnessError: ``suite`` has no episodes file (a map suite).
+    """
+    if suite.episodes_file is None:
+        raise HarnessError(f"suite {suite.name!r} has no episodes file (a {suite.kind!r} suite)")
+    split = splits()
+    return [e for e in load_episodes(suite.episodes_file).episodes if not split.is_reserved_scene(e.scene)]
 
 
 def get_suite(name: str) -> Suite:

@@ -11,7 +11,11 @@
   instances of seen categories); every instance of a val or test category has that category's
   role;
 * **scene seeds**: disjoint ranges for tower training views, tower validation views, score-floor
-  calibration scenes and evaluation scenes (the seeds of the v2 scene generators).
+  calibration scenes and evaluation scenes (the seeds of the v2 scene generators);
+* **reserved scenes**: shipped v1 scenes that chose or measured the v1 embedded tower's score floor
+  (``calibration`` or ``validation``, :data:`V1_FLOOR_CALIBRATION_SCENES`,
+  :data:`V1_FLOOR_VALIDATION_SCENES`); no evaluation suite uses them (no map-suite case, no
+  episode on them).
 
 The file is derived by :func:`derive_splits` from the catalogue and a few fixed choices (the
 held-out categories below, picked across the taxonomy so that every held-out category keeps a
@@ -37,8 +41,8 @@ from sim_envs.assets.library import catalogue as library_catalogue
 from sim_envs.scenes.episodes import SCENES_ROOT
 
 __all__ = [
-    "SPLITS_FILE", "ROLES", "SEED_ROLES", "TEST_CATEGORIES", "VAL_CATEGORIES", "Splits", "SplitError",
-    "derive_splits", "load_splits", "splits",
+    "SPLITS_FILE", "ROLES", "SEED_ROLES", "RESERVED_ROLES", "V1_FLOOR_CALIBRATION_SCENES", "V1_FLOOR_VALIDATION_SCENES",
+    "TEST_CATEGORIES", "VAL_CATEGORIES", "Splits", "SplitError", "derive_splits", "load_splits", "splits",
 ]
 
 SPLITS_FILE = SCENES_ROOT / "splits-v1.json"
@@ -65,6 +69,23 @@ TEST_CATEGORIES = (
 VAL_CATEGORIES = ("jar", "remote control", "spatula", "lemon", "paintbrush", "spinning top")
 """Categories held out from training and used for model selection only."""
 
+V1_FLOOR_CALIBRATION_SCENES = (
+    "tabletop-0111", "tabletop-1448", "tabletop-2416", "tabletop-3988", "tabletop-5749", "tabletop-7474",
+)
+"""Shipped v1 tabletop scenes the v1 embedded tower's score floor is chosen on (every 8th shipped scene)."""
+
+V1_FLOOR_VALIDATION_SCENES = (
+    "tabletop-1055", "tabletop-1573", "tabletop-2859", "tabletop-4881", "tabletop-6667", "tabletop-8559",
+)
+"""Shipped v1 tabletop scenes the chosen v1 floor is measured on (every 8th from the 5th)."""
+
+RESERVED_ROLES = ("calibration", "validation")
+"""Roles of reserved scenes: the v1 score floor is chosen on ``calibration`` scenes and measured on
+``validation`` ones."""
+
+_SHIPPED_KINDS = ("tabletop", "household")
+"""Kinds of shipped v1 scenes (``scenes/<kind>/<kind>-NNNN.json``)."""
+
 _MIN_INSTANCES_TO_HOLD_OUT = 3
 """A train category gives one validation and one test instance when it has at least this many."""
 
@@ -83,6 +104,9 @@ class Splits:
     """Instance id -> role."""
     seeds: Mapping[str, tuple[int, int]]
     """Seed role -> ``[start, stop)``."""
+    reserved_scenes: Mapping[str, str]
+    """Shipped v1 scene id (``"tabletop-0111"``) -> ``"calibration"`` or ``"validation"``: scenes
+    that tuned or measured the v1 tower's score floor, kept out of every evaluation suite."""
 
     def categories_of(self, role: str) -> list[str]:
         """Category names with ``role``, sorted."""
@@ -104,6 +128,23 @@ class Splits:
         if n > hi - lo:
             raise SplitError(f"seed role {role!r}: asked for {n} seeds, the range holds {hi - lo}")
         return list(range(lo, lo + n))
+
+    def reserved_scene_ids(self, role: str | None = None) -> list[str]:
+        """Reserved shipped scene ids (of one :data:`RESERVED_ROLES` role, or all), sorted."""
+        if role is not None and role not in RESERVED_ROLES:
+            raise SplitError(f"reserved role {role!r}: expected one of {', '.join(RESERVED_ROLES)}")
+        return sorted(s for s, r in self.reserved_scenes.items() if role is None or r == role)
+
+    def is_reserved_scene(self, scene: str) -> bool:
+        """Whether ``scene`` is reserved: a shipped scene id (``"tabletop-0111"``) or an episode's
+        scene path relative to ``scenes/`` (``"tabletop/tabletop-0111.json"``; a scene of another
+        folder, such as ``calibration/tabletop-2748.json``, is not a shipped scene)."""
+        scene = str(scene)
+        if scene.endswith(".json"):
+            folder, _, name = scene.rpartition("/")
+            scene_id = name[: -len(".json")]
+            return folder == scene_id.split("-")[0] and scene_id in self.reserved_scenes
+        return scene in self.reserved_scenes
 
 
 def _role(role: str) -> str:
@@ -137,6 +178,8 @@ def derive_splits() -> dict:
         "categories": categories,
         "instances": dict(sorted(instances.items())),
         "seeds": {k: list(v) for k, v in SEED_ROLES.items()},
+        "reserved_scenes": {**{s: "calibration" for s in V1_FLOOR_CALIBRATION_SCENES},
+                            **{s: "validation" for s in V1_FLOOR_VALIDATION_SCENES}},
     }
 
 
@@ -145,7 +188,8 @@ def load_splits(path: str | Path = SPLITS_FILE) -> Splits:
 
     Checks: format and version; every role known; no instance in a role its category forbids
     (an instance of a val/test category must share the category's role); every instance's
-    category in the file; seed ranges well formed and pairwise disjoint.
+    category in the file; seed ranges well formed and pairwise disjoint; every reserved scene a
+    shipped v1 scene (``scenes/<kind>/<id>.json``) with a :data:`RESERVED_ROLES` role.
     """
     path = Path(path)
     try:
@@ -186,7 +230,22 @@ def load_splits(path: str | Path = SPLITS_FILE) -> Splits:
         for b in names[i + 1:]:
             if ranges[a][0] < ranges[b][1] and ranges[b][0] < ranges[a][1]:
                 raise SplitError(f"{path}: seeds.{a} {list(ranges[a])} and seeds.{b} {list(ranges[b])} overlap")
-    return Splits(dict(cats), dict(insts), ranges)
+    reserved = _reserved_scenes(path, data.get("reserved_scenes"))
+    return Splits(dict(cats), dict(insts), ranges, reserved)
+
+
+def _reserved_scenes(path: Path, table) -> dict[str, str]:
+    """The ``reserved_scenes`` field, validated: shipped v1 scene id -> reserved role."""
+    if not isinstance(table, dict):
+        raise SplitError(f"{path}: reserved_scenes: expected an object of shipped scene id -> role, got {table!r}")
+    for sid, role in table.items():
+        if role not in RESERVED_ROLES:
+            raise SplitError(f"{path}: reserved_scenes.{sid}: expected one of {', '.join(RESERVED_ROLES)}, got {role!r}")
+        kind = sid.split("-")[0]
+        if kind not in _SHIPPED_KINDS or not (SCENES_ROOT / kind / f"{sid}.json").is_file():
+            raise SplitError(f"{path}: reserved_scenes.{sid}: not a shipped scene "
+                             f"(expected a file scenes/<{'|'.join(_SHIPPED_KINDS)}>/<id>.json)")
+    return dict(table)
 
 
 _CACHE: dict[str, Splits] = {}

@@ -5,7 +5,9 @@ import json
 import pytest
 
 from sim_envs.assets.library import catalogue
-from sim_envs.scenes.splits import SPLITS_FILE, SplitError, derive_splits, load_splits, splits
+from sim_envs.scenes.splits import (
+    SPLITS_FILE, V1_FLOOR_CALIBRATION_SCENES, V1_FLOOR_VALIDATION_SCENES, SplitError, derive_splits, load_splits, splits,
+)
 
 
 def test_the_shipped_file_is_the_derivation_and_loads():
@@ -56,6 +58,19 @@ def test_seed_ranges_are_disjoint_and_roles_found():
         s.seeds_of("calibration", 10**9)
 
 
+def test_reserved_scenes_are_the_v1_floor_scenes():
+    s = splits()
+    assert s.reserved_scene_ids("calibration") == sorted(V1_FLOOR_CALIBRATION_SCENES)
+    assert s.reserved_scene_ids("validation") == sorted(V1_FLOOR_VALIDATION_SCENES)
+    assert s.reserved_scene_ids() == sorted(V1_FLOOR_CALIBRATION_SCENES + V1_FLOOR_VALIDATION_SCENES)
+    assert not set(V1_FLOOR_CALIBRATION_SCENES) & set(V1_FLOOR_VALIDATION_SCENES)
+    assert s.is_reserved_scene("tabletop-0111") and s.is_reserved_scene("tabletop/tabletop-8559.json")
+    assert not s.is_reserved_scene("tabletop-0129") and not s.is_reserved_scene("tabletop/tabletop-0129.json")
+    assert not s.is_reserved_scene("calibration/tabletop-0111.json")  # another folder: not the shipped scene
+    with pytest.raises(SplitError, match="reserved role 'test': expected one of calibration, validation"):
+        s.reserved_scene_ids("test")
+
+
 def _write(tmp_path, data):
     path = tmp_path / "splits.json"
     path.write_text(json.dumps(data))
@@ -82,6 +97,13 @@ def test_a_file_that_overlaps_itself_is_refused(tmp_path):
     (lambda d: d["seeds"].update(evaluation=[5, 1]), r"seeds\.evaluation: expected \[start, stop\)"),
     (lambda d: d.update(version=2), "expected format 'cf-splits' version 1"),
     (lambda d: d.update(instances={}), "instances: expected a non-empty object"),
+    (lambda d: d["reserved_scenes"].update({"tabletop-0129": "train"}),
+     r"reserved_scenes\.tabletop-0129: expected one of calibration, validation, got 'train'"),
+    (lambda d: d["reserved_scenes"].update({"tabletop-9999": "calibration"}),
+     r"splits\.json: reserved_scenes\.tabletop-9999: not a shipped scene"),
+    (lambda d: d["reserved_scenes"].update({"kitchen-0001": "validation"}),
+     r"reserved_scenes\.kitchen-0001: not a shipped scene"),
+    (lambda d: d.pop("reserved_scenes"), r"reserved_scenes: expected an object of shipped scene id -> role"),
 ])
 def test_malformed_files_name_the_field(tmp_path, edit, match):
     data = derive_splits()

@@ -1,0 +1,77 @@
+"""No evaluation suite runs on a scene that trained or calibrated anything (the split file's rule)."""
+
+from __future__ import annotations
+
+from pathlib import Path
+
+import pytest
+
+from harness.maps.suites import MAP_SUITES, scene_ids
+from harness.runner.floors import calibration_suite, regression_suites
+from harness.runner.map_jobs import map_suite_jobs
+from harness.runner.run import RunConfig, episode_jobs
+from harness.runner.suites import SUITES, get_suite, suite_episodes
+from sim_envs.scenes.episodes import SCENES_ROOT, load_episodes
+from sim_envs.scenes.splits import splits
+from tower_training.evaluate import FloorConfig
+
+RESERVED = frozenset(splits().reserved_scene_ids())
+FLOOR_CALIBRATION = frozenset(p.stem for p in (SCENES_ROOT / "calibration").glob("*.json") if "episodes" not in p.stem)
+"""Scene ids of the regression floors' calibration episodes (``scenes/calibration/``)."""
+
+
+def _suite_scenes(name: str) -> list[tuple[str, int | None]]:
+    """(scene id, scene seed or None) of every job of suite ``name`` at default options."""
+    suite = get_suite(name)
+    config = RunConfig(suites=(name,))
+    if suite.kind == "maps":
+        return [(j.scene_id, None) for j in map_suite_jobs(name, config, "r")]
+    return [(Path(j.episode.scene).stem, j.episode.scene_seed) for j in episode_jobs(suite, config, "r")]
+
+
+def test_the_reserved_scenes_are_the_v1_tower_floor_scenes():
+    cfg = FloorConfig()
+    assert set(cfg.calibration_scenes) | set(cfg.validation_scenes) == RESERVED and len(RESERVED) == 12
+    assert set(splits().reserved_scene_ids("calibration")) == set(cfg.calibration_scenes)
+    assert FLOOR_CALIBRATION and len(FLOOR_CALIBRATION) == 150 + 20
+
+
+@pytest.mark.parametrize("name", sorted(SUITES))
+def test_no_evaluation_suite_uses_a_reserved_or_calibration_scene(name):
+    scenes = _suite_scenes(name)
+    assert scenes, name
+    ids = {sid for sid, _ in scenes}
+    assert not ids & RESERVED, f"{name}: reserved scenes {sorted(ids & RESERVED)}"
+    assert not ids & FLOOR_CALIBRATION, f"{name}: floor calibration scenes {sorted(ids & FLOOR_CALIBRATION)}"
+    # v2 scenes come from evaluation seeds only; v1 seeds (0-9999) lie outside every seed range
+    roles = {splits().seed_role(seed) for _, seed in scenes if seed is not None}
+    assert roles <= {None, "evaluation"}, f"{name}: scene seeds of roles {roles}"
+
+
+def test_map_suites_are_all_covered_and_take_the_first_unreserved_scenes():
+    assert set(MAP_SUITES) <= set(SUITES)
+    shipped = sorted(p.stem for p in (SCENES_ROOT / "tabletop").glob("tabletop-*.json"))
+    assert shipped[0] in RESERVED  # the first shipped scene calibrated the v1 floor
+    assert scene_ids("tabletop", None) == [s for s in shipped if s not in RESERVED][:6]
+    assert [j.scene_id for j in map_suite_jobs("query", RunConfig(suites=("query",)), "r")] == scene_ids("tabletop", None)
+
+
+def test_episode_suites_skip_reserved_episodes_and_keep_their_counts():
+    rearrange = get_suite("rearrange")
+    shipped = load_episodes(rearrange.episodes_file).episodes
+    on_reserved = [i for i, e in enumerate(shipped) if Path(e.scene).stem in RESERVED]
+    assert on_reserved == [3, 9, 21, 27, 28, 29, 30, 36, 37, 39, 44, 45]
+    kept = suite_episodes(rearrange)
+    assert [e.episode_id for e in kept] == [e.episode_id for i, e in enumerate(shipped) if i not in on_reserved]
+    for suite in regression_suites():  # the same rule; the pinned counts are the first N kept episodes
+        jobs = episode_jobs(suite, RunConfig(suites=(suite.name,)), "r")
+        for agent in suite.agents:
+            mine = [j.episode.episode_id for j in jobs if j.agent == agent]
+            assert mine == [e.episode_id for e in suite_episodes(suite)[:suite.agent_limits.get(agent, suite.limit)]]
+            assert len(mine) == suite.agent_limits.get(agent, suite.limit)
+        # the floors' own calibration episodes are all kept
+        cal = calibration_suite(suite)
+        assert len(suite_episodes(cal)) == len(load_episodes(suite.calibration_file).episodes)
+    with pytest.raises(ValueError, match="suite 'query' has no episodes file"):
+        suite_episodes(get_suite("query"))
+
