@@ -21,6 +21,7 @@ __all__ = [
     "MissingFileError",
     "MissingDependencyError",
     "CheckpointError",
+    "CalibrationFileError",
     "UnknownNameError",
     "UnknownKeyError",
     "SimError",
@@ -67,6 +68,11 @@ class MissingDependencyError(ConceptFusionError, ImportError):
 
 class CheckpointError(ConceptFusionError, ValueError):
     """A model checkpoint is incomplete, corrupt, or not the kind of model expected."""
+
+
+class CalibrationFileError(ConceptFusionError, ValueError):
+    """A calibration data file shipped with the package (such as the oracle's score floor) is
+    not valid JSON, of another format or version, or has missing or invalid fields."""
 
 
 class UnknownNameError(ConceptFusionError, ValueError):

@@ -38,6 +38,7 @@ from conceptfusion.names import unknown_name_error
 from conceptfusion.perception.features import PixelFeatures, check_mode
 from conceptfusion.perception.masks.registry import PROPOSERS, make_proposer
 from conceptfusion.perception.oracle import GROUNDED_ORACLE_DIM, GROUNDED_ORACLE_MIN_SCORE, GroundedOracleFeatures, OracleFeatures
+from conceptfusion.perception.oracle_floor import ORACLE_TEXT_ENCODER, load_oracle_floor
 from conceptfusion.perception.pipeline import frame_features
 from conceptfusion.perception.registry import DEFAULT_ENCODER, ENCODERS, make_encoder
 
@@ -60,9 +61,14 @@ __all__ = [
 ORACLE = "oracle"
 """The encoder name of privileged oracle perception (not an encoder of the registry)."""
 
-ORACLE_MIN_SCORE = 0.85
-"""Score floor with oracle features: exact names score >= 0.9 against their MiniLM text
-embedding, near-miss names (another colour, another kind) <= 0.75."""
+ORACLE_MIN_SCORE = load_oracle_floor()
+"""Score floor with oracle features, derived, not tuned: read once, at import, from
+:data:`~conceptfusion.perception.oracle_floor.ORACLE_FLOOR_FILE`, which
+``python -m tower_training.oracle_floor --write`` writes (the midpoint between the lowest score of
+an object's own wordings against its label and the highest score of those wordings against the
+other objects' labels, over the floor-calibration scenes). A missing or broken file raises
+:class:`~conceptfusion.errors.MissingFileError` / :class:`~conceptfusion.errors.CalibrationFileError`
+naming it."""
 
 ORACLE_OPEN = "oracle-open"
 """The encoder name of privileged oracle perception with ground-truth grounding of
@@ -74,9 +80,6 @@ ORACLE_OPEN_MIN_SCORE = GROUNDED_ORACLE_MIN_SCORE
 
 ORACLE_ENCODERS: frozenset[str] = frozenset({ORACLE, ORACLE_OPEN})
 """The privileged oracle encoder names: ground-truth features with no image tower."""
-
-_ORACLE_TEXT_ENCODER = "minilm-text"
-"""The registry encoder whose text embeddings label the oracle's segments."""
 
 
 def perception_names() -> list[str]:
@@ -400,7 +403,7 @@ def make_featurizer(spec: "PerceptionSpec | str" = DEFAULT_ENCODER) -> FrameFeat
     """
     spec = PerceptionSpec.parse(spec)
     if spec.encoder_name == ORACLE:
-        return OracleFeaturizer(load_encoder(_ORACLE_TEXT_ENCODER))
+        return OracleFeaturizer(load_encoder(ORACLE_TEXT_ENCODER))
     if spec.encoder_name == ORACLE_OPEN:
         return GroundedOracleFeaturizer()
     return PerceivedFeaturizer(load_encoder(spec.encoder), make_proposer(spec.proposer),
