@@ -57,6 +57,18 @@ class TextEmbedder(Protocol):
     def encode_text(self, texts: Sequence[str]) -> np.ndarray: ...
 
 
+def _segment_features(segmentation_hw, palette_kd: np.ndarray, lut: np.ndarray) -> PixelFeatures:
+    """Each pixel's palette row through ``lut`` (segmentation id -> row; its last entry, -1,
+    stands for -1 and ids past the table), as PixelFeatures.
+
+    Shape:
+        (H, W) int, (k, D), (max_id + 2,) int32 -> PixelFeatures of (H, W).
+    """
+    seg = as_array("segmentation_hw", segmentation_hw, shape=(None, None), kinds="iu").astype(np.int64)
+    idx = np.where((seg >= 0) & (seg < len(lut) - 1), seg, len(lut) - 1)
+    return PixelFeatures(palette_kd, lut[idx])
+
+
 class OracleFeatures:
     """Pixel features from instance segmentation and object names (privileged).
 
@@ -86,9 +98,7 @@ class OracleFeatures:
         Shape:
             ``segmentation_hw`` (H, W) int -> PixelFeatures of (H, W).
         """
-        seg = as_array("segmentation_hw", segmentation_hw, shape=(None, None), kinds="iu").astype(np.int64)
-        idx = np.where((seg >= 0) & (seg < len(self._lut) - 1), seg, len(self._lut) - 1)
-        return PixelFeatures(self._palette, self._lut[idx])
+        return _segment_features(segmentation_hw, self._palette, self._lut)
 
 
 def normalize_phrase(text: str) -> str:
@@ -170,6 +180,4 @@ class GroundedOracleFeatures:
         Shape:
             ``segmentation_hw`` (H, W) int -> PixelFeatures of (H, W) over a (k, D) palette.
         """
-        seg = as_array("segmentation_hw", segmentation_hw, shape=(None, None), kinds="iu").astype(np.int64)
-        idx = np.where((seg >= 0) & (seg < len(self._lut) - 1), seg, len(self._lut) - 1)
-        return PixelFeatures(self._palette, self._lut[idx])
+        return _segment_features(segmentation_hw, self._palette, self._lut)
