@@ -26,10 +26,10 @@ _PROJECT_BLOCK = 2048
 _THREAD_CHUNK = 1 << 16  # fewest points per thread
 
 
-def associate(geo, n, world_to_cam, K, valid_pix, verts, nrms, dist_th2, cos_th, h, w):
+def associate(geo, n, world_to_cam, K, valid_pix, obs, dist_th2, cos_th, h, w):
     """Match the first ``n`` map points (rows of ``geo``: position 0:3, normal 3:6, confidence
-    9) with the frame's valid pixels (flat pixel ``valid_pix[j]``, vertex ``verts[j]``, normal
-    ``nrms[j]``).
+    9) with the frame's valid pixels (flat pixel ``valid_pix[j]``, vertex ``obs[j, 0:3]``,
+    normal ``obs[j, 3:6]``; ``obs`` is read in place, any further columns ignored).
 
     Returns ``(points, pixels, covered)``: matched map point indices and valid-pixel indices,
     (M,) int64 in increasing point order (a point wins at most one pixel), and (V,) bool over
@@ -38,7 +38,7 @@ def associate(geo, n, world_to_cam, K, valid_pix, verts, nrms, dist_th2, cos_th,
     pixel_to_valid = pixel_index(valid_pix, h, w)
     parts = map_ranges(
         lambda start, stop: scan(
-            geo, start, stop, world_to_cam, K, pixel_to_valid, verts, nrms, dist_th2, cos_th, h, w, start > 0
+            geo, start, stop, world_to_cam, K, pixel_to_valid, obs, dist_th2, cos_th, h, w, start > 0
         ),
         n,
         min_chunk=_THREAD_CHUNK,
@@ -47,7 +47,7 @@ def associate(geo, n, world_to_cam, K, valid_pix, verts, nrms, dist_th2, cos_th,
     for part in parts[1:]:
         merge_scans(*acc, *part)
     best_pt, _, _, near_pt, _, _ = acc
-    return finish(geo, n, best_pt, near_pt, valid_pix, verts, nrms, dist_th2, cos_th, h, w)
+    return finish(geo, n, best_pt, near_pt, valid_pix, obs, dist_th2, cos_th, h, w)
 
 
 @njit(cache=True, nogil=True)
@@ -92,18 +92,18 @@ def _project_block(geo, start, cnt, world_to_cam, K, h, w, xs, ys, zs, qs, zcs):
 
 
 @njit(cache=True, nogil=True, inline="always")
-def _compatible(geo, k, verts, nrms, j, dist_th2, cos_th):
+def _compatible(geo, k, obs, j, dist_th2, cos_th):
     """Map point ``k`` and frame vertex ``j`` are within the distance and angle thresholds."""
-    dx = geo[k, 0] - verts[j, 0]
-    dy = geo[k, 1] - verts[j, 1]
-    dz = geo[k, 2] - verts[j, 2]
+    dx = geo[k, 0] - obs[j, 0]
+    dy = geo[k, 1] - obs[j, 1]
+    dz = geo[k, 2] - obs[j, 2]
     if dx * dx + dy * dy + dz * dz >= dist_th2:
         return False
-    return geo[k, 3] * nrms[j, 0] + geo[k, 4] * nrms[j, 1] + geo[k, 5] * nrms[j, 2] >= cos_th
+    return geo[k, 3] * obs[j, 3] + geo[k, 4] * obs[j, 4] + geo[k, 5] * obs[j, 5] >= cos_th
 
 
 @njit(cache=True, nogil=True)
-def scan(geo, start, stop, world_to_cam, K, pixel_to_valid, verts, nrms, dist_th2, cos_th, h, w, track_min):
+def scan(geo, start, stop, world_to_cam, K, pixel_to_valid, obs, dist_th2, cos_th, h, w, track_min):
     """Candidates among points ``start:stop``, in point order.
 
     Returns ``(best_pt, best_conf, best_d2, near_pt, near_z, near_min)``: per valid pixel the
@@ -112,7 +112,7 @@ def scan(geo, start, stop, world_to_cam, K, pixel_to_valid, verts, nrms, dist_th
     ``track_min`` (a later range, to be merged), the exact smallest depth seen (float64),
     (h * w,) (else empty).
     """
-    num_valid = verts.shape[0]
+    num_valid = obs.shape[0]
     best_pt = np.full(num_valid, -1, np.int32)
     best_conf = np.zeros(num_valid, np.float32)
     best_d2 = np.zeros(num_valid, np.float32)
@@ -141,12 +141,15 @@ def scan(geo, start, stop, world_to_cam, K, pixel_to_valid, verts, nrms, dist_th
             j = pixel_to_valid[q]
             if j < 0:
                 continue
-            if not _compatible(geo, k, verts, nrms, j, dist_th2, cos_th):
-                continue
-            dx = geo[k, 0] - verts[j, 0]
-            dy = geo[k, 1] - verts[j, 1]
-            dz = geo[k, 2] - verts[j, 2]
+            # _compatible, keeping the squared distance
+            dx = geo[k, 0] - obs[j, 0]
+            dy = geo[k, 1] - obs[j, 1]
+            dz = geo[k, 2] - obs[j, 2]
             d2 = dx * dx + dy * dy + dz * dz
+            if d2 >= dist_th2:
+                continue
+            if not geo[k, 3] * obs[j, 3] + geo[k, 4] * obs[j, 4] + geo[k, 5] * obs[j, 5] >= cos_th:
+                continue
             c = geo[k, 9]
             if best_pt[j] < 0 or c > best_conf[j] or (c == best_conf[j] and d2 < best_d2[j]):
                 best_pt[j] = k
@@ -182,9 +185,9 @@ def merge_scans(best_pt, best_conf, best_d2, near_pt, near_z, near_min,
 
 
 @njit(cache=True, nogil=True)
-def finish(geo, n, best_pt, near_pt, valid_pix, verts, nrms, dist_th2, cos_th, h, w):
+def finish(geo, n, best_pt, near_pt, valid_pix, obs, dist_th2, cos_th, h, w):
     """Matches ordered by point and the covered flags of the unmatched pixels (see module)."""
-    num_valid = verts.shape[0]
+    num_valid = obs.shape[0]
     covered = np.zeros(num_valid, np.bool_)
     m = 0
     for j in range(num_valid):
@@ -202,7 +205,7 @@ def finish(geo, n, best_pt, near_pt, valid_pix, verts, nrms, dist_th2, cos_th, h
                 if uu < 0 or uu >= w:
                     continue
                 k = near_pt[vv * w + uu]
-                if k >= 0 and _compatible(geo, k, verts, nrms, j, dist_th2, cos_th):
+                if k >= 0 and _compatible(geo, k, obs, j, dist_th2, cos_th):
                     covered[j] = True
                     break
             if covered[j]:

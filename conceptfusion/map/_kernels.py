@@ -15,12 +15,14 @@ from numba import njit
 __all__ = ["merge_geometry", "merge_features", "mixture_scores", "mixture_scores_many", "frame_points", "lookup_tables"]
 
 
-@njit(cache=True, nogil=True)
+@njit(cache=True, nogil=True, error_model="numpy")
 def merge_geometry(geo, pts, pix, obs, alpha):
     """Confidence-weighted running means (eqs. 1-2) of position, normal and colour.
 
     ``geo[p, 0:9] = (c geo[p, 0:9] + a obs[j]) / (c + a)``, normal re-normalised,
     ``geo[p, 9] = c + a`` for each pair ``(p, j)`` of ``pts``, ``pix``; ``a = alpha[j]``.
+    Each row is read once into locals and written once (every value rounded to float32
+    where it is stored, as an in-place update of the row would round it).
     """
     for i in range(pts.shape[0]):
         p = pts[i]
@@ -28,13 +30,29 @@ def merge_geometry(geo, pts, pix, obs, alpha):
         a = alpha[j]
         c = geo[p, 9]
         inv = 1.0 / (c + a)
-        for col in range(9):
-            geo[p, col] = (c * geo[p, col] + a * obs[j, col]) * inv
-        nn = np.sqrt(geo[p, 3] ** 2 + geo[p, 4] ** 2 + geo[p, 5] ** 2)
+        x0 = np.float32((c * geo[p, 0] + a * obs[j, 0]) * inv)
+        x1 = np.float32((c * geo[p, 1] + a * obs[j, 1]) * inv)
+        x2 = np.float32((c * geo[p, 2] + a * obs[j, 2]) * inv)
+        x3 = np.float32((c * geo[p, 3] + a * obs[j, 3]) * inv)
+        x4 = np.float32((c * geo[p, 4] + a * obs[j, 4]) * inv)
+        x5 = np.float32((c * geo[p, 5] + a * obs[j, 5]) * inv)
+        x6 = np.float32((c * geo[p, 6] + a * obs[j, 6]) * inv)
+        x7 = np.float32((c * geo[p, 7] + a * obs[j, 7]) * inv)
+        x8 = np.float32((c * geo[p, 8] + a * obs[j, 8]) * inv)
+        nn = np.sqrt(x3**2 + x4**2 + x5**2)
         if nn > 1e-12:
-            geo[p, 3] /= nn
-            geo[p, 4] /= nn
-            geo[p, 5] /= nn
+            x3 = np.float32(x3 / nn)
+            x4 = np.float32(x4 / nn)
+            x5 = np.float32(x5 / nn)
+        geo[p, 0] = x0
+        geo[p, 1] = x1
+        geo[p, 2] = x2
+        geo[p, 3] = x3
+        geo[p, 4] = x4
+        geo[p, 5] = x5
+        geo[p, 6] = x6
+        geo[p, 7] = x7
+        geo[p, 8] = x8
         geo[p, 9] = c + a
 
 
