@@ -76,6 +76,8 @@ def test_binds_loopback_only(folders):
             ViewerServer(folders / "maps" / "map.npz", encoder="color", host=host)
     with pytest.raises(MissingFileError, match="map file not found"):
         ViewerServer(folders / "maps" / "missing.npz", encoder="color")
+    with pytest.raises(HarnessError, match="oracle-open: grounds descriptions in a live scene's ground truth"):
+        ViewerServer(folders / "maps" / "map.npz", encoder="oracle-open")
 
 
 def test_serves_the_page_and_files_of_the_map_folder(server):
