@@ -92,14 +92,18 @@ def _project_block(geo, start, cnt, world_to_cam, K, h, w, xs, ys, zs, qs, zcs):
 
 
 @njit(cache=True, nogil=True, inline="always")
-def _compatible(geo, k, obs, j, dist_th2, cos_th):
-    """Map point ``k`` and frame vertex ``j`` are within the distance and angle thresholds."""
+def _match_d2(geo, k, obs, j, dist_th2, cos_th):
+    """The squared distance between map point ``k`` and frame vertex ``j`` (``obs[j, 0:3]``)
+    when they are within the distance and angle thresholds, else -1."""
     dx = geo[k, 0] - obs[j, 0]
     dy = geo[k, 1] - obs[j, 1]
     dz = geo[k, 2] - obs[j, 2]
-    if dx * dx + dy * dy + dz * dz >= dist_th2:
-        return False
-    return geo[k, 3] * obs[j, 3] + geo[k, 4] * obs[j, 4] + geo[k, 5] * obs[j, 5] >= cos_th
+    d2 = dx * dx + dy * dy + dz * dz
+    if d2 >= dist_th2:
+        return -1.0
+    if not geo[k, 3] * obs[j, 3] + geo[k, 4] * obs[j, 4] + geo[k, 5] * obs[j, 5] >= cos_th:
+        return -1.0
+    return d2
 
 
 @njit(cache=True, nogil=True)
@@ -141,14 +145,8 @@ def scan(geo, start, stop, world_to_cam, K, pixel_to_valid, obs, dist_th2, cos_t
             j = pixel_to_valid[q]
             if j < 0:
                 continue
-            # _compatible, keeping the squared distance
-            dx = geo[k, 0] - obs[j, 0]
-            dy = geo[k, 1] - obs[j, 1]
-            dz = geo[k, 2] - obs[j, 2]
-            d2 = dx * dx + dy * dy + dz * dz
-            if d2 >= dist_th2:
-                continue
-            if not geo[k, 3] * obs[j, 3] + geo[k, 4] * obs[j, 4] + geo[k, 5] * obs[j, 5] >= cos_th:
+            d2 = _match_d2(geo, k, obs, j, dist_th2, cos_th)
+            if d2 < 0.0:
                 continue
             c = geo[k, 9]
             if best_pt[j] < 0 or c > best_conf[j] or (c == best_conf[j] and d2 < best_d2[j]):
@@ -205,7 +203,7 @@ def finish(geo, n, best_pt, near_pt, valid_pix, obs, dist_th2, cos_th, h, w):
                 if uu < 0 or uu >= w:
                     continue
                 k = near_pt[vv * w + uu]
-                if k >= 0 and _compatible(geo, k, obs, j, dist_th2, cos_th):
+                if k >= 0 and _match_d2(geo, k, obs, j, dist_th2, cos_th) >= 0.0:
                     covered[j] = True
                     break
             if covered[j]:
