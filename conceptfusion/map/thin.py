@@ -43,11 +43,12 @@ def voxel_representatives(points_n3: np.ndarray, confidence_n: np.ndarray, voxel
     if len(pts) == 0:
         return np.zeros(0, np.int64)
     cells = np.floor((pts - pts.min(axis=0)) / voxel).astype(np.int64)  # a grid from the cloud's corner
-    _, cell_id = np.unique(cells, axis=0, return_inverse=True)
+    cell_id = np.unique(cells, axis=0, return_inverse=True)[1].reshape(-1)
     # most confident first, then lowest index, within each cell
-    order = np.lexsort((np.arange(len(pts)), -conf, cell_id.reshape(-1)))
+    order = np.lexsort((np.arange(len(pts)), -conf, cell_id))
+    sorted_cells = cell_id[order]
     first = np.ones(len(order), bool)
-    first[1:] = cell_id.reshape(-1)[order][1:] != cell_id.reshape(-1)[order][:-1]
+    first[1:] = sorted_cells[1:] != sorted_cells[:-1]
     return np.sort(order[first])
 
 
