@@ -34,7 +34,7 @@ from typing import Protocol, Sequence, runtime_checkable
 import numpy as np
 
 from conceptfusion.errors import CheckpointError, DtypeError, MissingDependencyError, ShapeError
-from conceptfusion.perception.encoders import unit_rows
+from conceptfusion.perception.encoders import onnx_session_options, unit_rows
 
 __all__ = ["AudioEncoder", "check_waveforms", "OnnxAudioEncoder", "export_audio_onnx", "AUDIO_MANIFEST"]
 
@@ -119,7 +119,7 @@ class OnnxAudioEncoder:
         folder: the folder with ``audio.onnx`` and ``audio.json``.
         expected_dim: if given, the dimension of the encoder whose space the audio must
             share (checked at load time).
-        threads: onnxruntime intra-op threads.
+        threads: onnxruntime intra-op threads (``None``: ``$CF_THREADS``, else 2).
 
     Raises:
         FileNotFoundError: the folder or one of its files is missing.
@@ -127,7 +127,7 @@ class OnnxAudioEncoder:
             output size other than ``expected_dim``.
     """
 
-    def __init__(self, folder: str | Path, *, expected_dim: int | None = None, threads: int = 2) -> None:
+    def __init__(self, folder: str | Path, *, expected_dim: int | None = None, threads: int | None = None) -> None:
         import onnxruntime as ort
 
         d = Path(folder).expanduser()
@@ -137,9 +137,7 @@ class OnnxAudioEncoder:
             if not (d / name).is_file():
                 raise FileNotFoundError(f"{d}: expected audio.onnx and {AUDIO_MANIFEST}, missing {name}")
         info = self._read_manifest(d / AUDIO_MANIFEST)
-        opts = ort.SessionOptions()
-        opts.intra_op_num_threads = threads
-        opts.log_severity_level = 3
+        opts = onnx_session_options(threads)
         try:
             self._session = ort.InferenceSession(str(d / "audio.onnx"), opts, providers=["CPUExecutionProvider"])
         except Exception as exc:  # onnxruntime raises its own exception types

@@ -37,7 +37,7 @@ from typing import Sequence
 import numpy as np
 
 from conceptfusion.perception.clip_hf import ClipPreprocess, clip_preprocess
-from conceptfusion.perception.encoders import check_texts, embed_in_batches, unit_rows
+from conceptfusion.perception.encoders import check_texts, embed_in_batches, onnx_session_options, unit_rows
 from conceptfusion.errors import CheckpointError, MissingDependencyError
 
 __all__ = ["OnnxClipEncoder", "export_clip_to_onnx", "MANIFEST_NAME", "LAYOUT_FILES"]
@@ -76,12 +76,10 @@ def _read_manifest(path: Path) -> dict:
     return info
 
 
-def _session(path: Path, threads: int):
+def _session(path: Path, threads: int | None):
     import onnxruntime as ort
 
-    opts = ort.SessionOptions()
-    opts.intra_op_num_threads = threads
-    opts.log_severity_level = 3
+    opts = onnx_session_options(threads)
     try:
         return ort.InferenceSession(str(path), opts, providers=["CPUExecutionProvider"])
     except Exception as exc:  # onnxruntime raises its own exception types
@@ -102,7 +100,7 @@ class OnnxClipEncoder:
     Args:
         folder: the ONNX CLIP folder.
         batch_size: images or strings per onnxruntime call.
-        threads: onnxruntime intra-op threads.
+        threads: onnxruntime intra-op threads (``None``: ``$CF_THREADS``, else 2).
 
     Raises:
         FileNotFoundError: the folder or one of :data:`LAYOUT_FILES` is missing.
@@ -110,7 +108,7 @@ class OnnxClipEncoder:
         MissingDependencyError: the ``tokenizers`` package is not installed.
     """
 
-    def __init__(self, folder: str | Path, *, batch_size: int = 32, threads: int = 2) -> None:
+    def __init__(self, folder: str | Path, *, batch_size: int = 32, threads: int | None = None) -> None:
         if not isinstance(batch_size, int) or batch_size < 1:
             raise ValueError(f"batch_size: expected an int >= 1, got {batch_size!r}")
         d = Path(folder).expanduser()

@@ -8,6 +8,7 @@ Face or ONNX CLIP) implement the same protocol.
 from __future__ import annotations
 
 import hashlib
+import os
 import re
 from typing import Callable, Protocol, Sequence, runtime_checkable
 
@@ -15,7 +16,8 @@ import numpy as np
 
 from conceptfusion.errors import DtypeError, ShapeError
 
-__all__ = ["Encoder", "ColorNameEncoder", "check_images", "check_texts", "unit_rows", "embed_in_batches", "COLOR_NAMES"]
+__all__ = ["Encoder", "ColorNameEncoder", "check_images", "check_texts", "unit_rows", "embed_in_batches", "COLOR_NAMES",
+           "THREADS_ENV", "default_threads", "onnx_session_options"]
 
 
 @runtime_checkable
@@ -34,6 +36,44 @@ class Encoder(Protocol):
     def encode_text(self, texts: Sequence[str]) -> np.ndarray:
         """Embed non-empty strings. Returns (n, d) float32, unit rows."""
         ...
+
+
+THREADS_ENV = "CF_THREADS"
+"""Environment variable: how many threads an encoder's runtime may use in this process. The
+harness's process backend sets it to each worker's share of the cores; unset, encoders use 2."""
+
+
+def default_threads() -> int:
+    """Intra-op threads for an encoder built without an explicit count: ``$CF_THREADS`` when
+    set (``ValueError`` unless it is an integer >= 1), else 2."""
+    raw = os.environ.get(THREADS_ENV)
+    if raw is None or raw == "":
+        return 2
+    try:
+        value = int(raw)
+    except ValueError:
+        value = 0
+    if value < 1:
+        raise ValueError(f"${THREADS_ENV}: expected an integer >= 1, got {raw!r}")
+    return value
+
+
+def onnx_session_options(threads: int | None):
+    """onnxruntime session options for a CPU encoder: ``threads`` intra-op threads
+    (``None``: :func:`default_threads`) that sleep rather than spin between operators (spinning
+    threads burn the CPU that rendering and fusion need; results are the same either way), and
+    warnings only."""
+    import onnxruntime as ort
+
+    if threads is None:
+        threads = default_threads()
+    if isinstance(threads, bool) or not isinstance(threads, int) or threads < 1:
+        raise ValueError(f"threads: expected an integer >= 1 or None, got {threads!r}")
+    opts = ort.SessionOptions()
+    opts.intra_op_num_threads = threads
+    opts.add_session_config_entry("session.intra_op.allow_spinning", "0")
+    opts.log_severity_level = 3
+    return opts
 
 
 def check_images(images: Sequence[np.ndarray]) -> list[np.ndarray]:

@@ -23,7 +23,7 @@ from typing import Sequence
 
 import numpy as np
 
-from conceptfusion.perception.encoders import check_images, check_texts, embed_in_batches
+from conceptfusion.perception.encoders import check_images, check_texts, embed_in_batches, onnx_session_options
 from conceptfusion.errors import MissingDependencyError
 
 __all__ = ["TowerConfig", "SHIPPED_TOWER_DIR", "SHIPPED_TOWER_V2_DIR", "preprocess", "build_tower", "export_tower_onnx", "EmbeddedEncoder"]
@@ -184,16 +184,17 @@ class EmbeddedEncoder:
         text_encoder: the frozen text tower the image tower was aligned to (anything with
             ``encode_text`` and ``dim``).
         batch_size: crops per onnxruntime call.
-        threads: onnxruntime intra-op threads (they sleep rather than spin between operators,
-            so that a busy machine does not lose cores to waiting).
+        threads: onnxruntime intra-op threads (``None``: ``$CF_THREADS``, else 2); they sleep
+            rather than spin between operators, so that a busy machine does not lose cores to
+            waiting. Embeddings are bit-identical for any count.
         cache_size: images whose embedding is remembered (least recently used go first; 0: none).
     """
 
-    def __init__(self, tower_dir: str | Path, text_encoder, *, batch_size: int = 64, threads: int = 2,
+    def __init__(self, tower_dir: str | Path, text_encoder, *, batch_size: int = 64, threads: int | None = None,
                  cache_size: int = 4096) -> None:
         import onnxruntime as ort
 
-        for name, value, low in (("batch_size", batch_size, 1), ("threads", threads, 1), ("cache_size", cache_size, 0)):
+        for name, value, low in (("batch_size", batch_size, 1), ("cache_size", cache_size, 0)):
             if isinstance(value, bool) or not isinstance(value, int) or value < low:
                 raise ValueError(f"{name}: expected an integer >= {low}, got {value!r}")
         d = Path(tower_dir)
@@ -206,10 +207,8 @@ class EmbeddedEncoder:
             self.config = TowerConfig(**{**info["config"], "widths": tuple(info["config"]["widths"])})
         except (ValueError, KeyError, TypeError) as exc:
             raise ValueError(f"{info_path}: expected the tower's JSON config, could not read it: {exc}") from exc
+        opts = onnx_session_options(threads)
         try:
-            opts = ort.SessionOptions()
-            opts.intra_op_num_threads = threads
-            opts.add_session_config_entry("session.intra_op.allow_spinning", "0")
             self._session = ort.InferenceSession(str(onnx_path), opts, providers=["CPUExecutionProvider"])
         except Exception as exc:  # onnxruntime raises its own exception types
             raise ValueError(f"{onnx_path}: not a loadable ONNX graph: {exc}") from exc

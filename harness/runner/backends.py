@@ -157,12 +157,29 @@ def _die_with_parent(parent_pid: int) -> None:
         threading.Thread(target=_watch_parent, args=(parent_pid,), name="cf-watch-parent", daemon=True).start()
 
 
+def limit_numpy_blas(threads: int) -> list[str]:
+    """Limit the BLAS libraries loaded so far (numpy's and scipy's; torch is not imported yet in
+    a fresh worker) to ``threads`` threads; returns the libraries limited.
+
+    A worker of a full pool has one core. numpy's OpenBLAS otherwise keeps a thread per core that
+    spins after each matrix product, burning the CPU the next render or proposal pass needs:
+    measured on a search step, 78 ms of CPU with it and 46 ms without, for the same wall time
+    alone and the same results (its products split rows, not sums, across threads).
+    """
+    from threadpoolctl import threadpool_info, threadpool_limits
+
+    blas = [i["filepath"] for i in threadpool_info() if i.get("user_api") == "blas"]
+    threadpool_limits(limits=int(threads), user_api="blas")
+    return blas
+
+
 def _worker_main(inbox, outbox, threads: int, parent_pid: int) -> None:
     """Worker loop: run jobs until told to stop (``None``); ``threads`` is the worker's share of
     the cores, for the jobs that limit their threads to it. The worker dies with ``parent_pid``."""
     _die_with_parent(parent_pid)
     signal.signal(signal.SIGINT, signal.SIG_IGN)  # the parent handles Ctrl-C
     os.environ[WORKER_THREADS_ENV] = str(threads)
+    limit_numpy_blas(threads)
     while True:
         item = inbox.get()
         if item is None:

@@ -17,12 +17,14 @@ import importlib
 import os
 from typing import Iterable, Iterator, Protocol, runtime_checkable
 
+from conceptfusion.perception.encoders import THREADS_ENV
 from harness.runner.results import make_record
 
 __all__ = ["Job", "JobTimeout", "job_record", "import_plugins", "WORKER_THREADS_ENV", "worker_thread_share"]
 
-WORKER_THREADS_ENV = "CF_WORKER_THREADS"
-"""Set by the process backend in each worker: that worker's share of the CPU cores."""
+WORKER_THREADS_ENV = THREADS_ENV
+"""Set by the process backend in each worker: that worker's share of the CPU cores (encoders
+size their onnxruntime thread pools by it)."""
 
 
 class JobTimeout(BaseException):

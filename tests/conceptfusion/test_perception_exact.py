@@ -106,3 +106,18 @@ def test_cache_batches_threads_and_repeats_change_no_embedding():
 def test_bad_encoder_settings(kwargs, match):
     with pytest.raises(ValueError, match=match):
         EmbeddedEncoder(SHIPPED_TOWER_DIR, _Text(), **kwargs)
+
+
+def test_thread_count_comes_from_cf_threads(monkeypatch):
+    from conceptfusion.perception.encoders import THREADS_ENV, default_threads, onnx_session_options
+
+    monkeypatch.delenv(THREADS_ENV, raising=False)
+    assert default_threads() == 2 and onnx_session_options(None).intra_op_num_threads == 2
+    monkeypatch.setenv(THREADS_ENV, "1")
+    assert onnx_session_options(None).intra_op_num_threads == 1
+    assert onnx_session_options(3).intra_op_num_threads == 3  # an explicit count wins
+    assert EmbeddedEncoder(SHIPPED_TOWER_DIR, _Text()).encode_image(_crops(2, 0)).shape == (3, 384)
+    for bad in ("0", "two", "-1"):
+        monkeypatch.setenv(THREADS_ENV, bad)
+        with pytest.raises(ValueError, match=f"CF_THREADS.*{bad}"):
+            EmbeddedEncoder(SHIPPED_TOWER_DIR, _Text())
