@@ -58,6 +58,11 @@ class NavigatorConfig:
     planner: BasePlannerConfig = field(default_factory=lambda: BasePlannerConfig(time_limit=0.5))
     look_angular: float = 1.2
     """Yaw rate (rad/s) of the look-around turn."""
+    goal_tolerance: float = 0.05
+    """Distance (m) to the end of a path to the goal at which the base counts as arrived (paths to
+    frontiers use ``tracking.goal_tolerance``). A goal cell lies within ``standoff`` of the
+    object (or as close as free space allows); arriving a whole tracking tolerance short of it
+    could leave the base outside the 1.0 m that counts as success."""
     recheck_every: int = 4
     """Steps between goal re-queries and path checks while following."""
     max_plan_failures: int = 6
@@ -75,6 +80,9 @@ class NavigatorConfig:
     """The turn (degrees) that makes a frame a keyframe (see ``keyframe_move``)."""
 
     def __post_init__(self) -> None:
+        if not (isinstance(self.goal_tolerance, (int, float)) and not isinstance(self.goal_tolerance, bool)
+                and 0 < self.goal_tolerance < math.inf):
+            raise ValueError(f"goal_tolerance: expected a finite number > 0, got {self.goal_tolerance!r}")
         for name in ("keyframe_move", "keyframe_turn_deg"):
             value = getattr(self, name)
             if not (isinstance(value, (int, float)) and not isinstance(value, bool) and 0 <= value < math.inf):
@@ -180,7 +188,7 @@ class MapNavigator:
             self._turned = 0.0
             return search_action(0.0, self.config.look_angular)
         self._failures = 0
-        if self._to_goal and plan.length <= 2 * self.config.tracking.goal_tolerance:
+        if self._to_goal and plan.length <= 2 * self.config.goal_tolerance:
             self._note(f"at the closest free point to '{goal_text}': stop")
             return search_action(stop=True)
         self._path, self._track, self._phase = plan.path, TrackingState(), "follow"
@@ -188,7 +196,10 @@ class MapNavigator:
         return self._follow(pose)
 
     def _follow(self, pose: np.ndarray) -> np.ndarray:
-        cmd, self._track = pure_pursuit_step(pose, self._path, self._track, self.config.tracking)
+        tracking = self.config.tracking
+        if self._to_goal:
+            tracking = dataclasses.replace(tracking, goal_tolerance=self.config.goal_tolerance)
+        cmd, self._track = pure_pursuit_step(pose, self._path, self._track, tracking)
         if cmd.done:
             if self._to_goal:
                 return self._plan(pose)  # re-check from here: stops when within reach
