@@ -71,7 +71,7 @@ class MujocoRGBDCamera:
         width, height: image size in pixels.
         fovy_deg: vertical field of view.
         geom_object: per geom id, the object index its pixels report (-1: none).
-        fast: turn shadows, reflections and multisampling off.
+        fast: turn shadows (and the shadow map), reflections and multisampling off.
     """
 
     def __init__(
@@ -91,6 +91,9 @@ class MujocoRGBDCamera:
             raise ValueError(f"width, height: expected positive sizes, got {width}x{height}")
         if fast:
             model.vis.quality.offsamples = 0
+            # No shadows drawn, so no shadow map: the default 4096^2 one took 75-150 ms of every
+            # new camera (a new camera per episode), to the same pixels.
+            model.vis.quality.shadowsize = 0
         model.vis.global_.offwidth = max(model.vis.global_.offwidth, width)
         model.vis.global_.offheight = max(model.vis.global_.offheight, height)
         self.model, self.data = model, data
@@ -101,7 +104,7 @@ class MujocoRGBDCamera:
         self._gl.make_current()
         self._ctx = mujoco.MjrContext(model, mujoco.mjtFontScale.mjFONTSCALE_150)
         mujoco.mjr_setBuffer(mujoco.mjtFramebuffer.mjFB_OFFSCREEN, self._ctx)
-        self._scene = mujoco.MjvScene(model, maxgeom=10000)
+        self._scene = mujoco.MjvScene(model, maxgeom=max(1000, 2 * model.ngeom + 100))
         self._opt = mujoco.MjvOption()
         self._pert = mujoco.MjvPerturb()
         self._cam = mujoco.MjvCamera()
