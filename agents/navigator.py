@@ -117,6 +117,8 @@ class MapNavigator:
         self._failures = 0
         self._visited: list[np.ndarray] = []
         self._closest_approach: float | None = None
+        self._seen: np.ndarray | None = None
+        """Footprint (m, 2) of the goal when the map last found it."""
         self._last_fused: np.ndarray | None = None
         self.log: list[str] = []
         """Why the agent did what it did, one line per decision (for reports)."""
@@ -145,17 +147,32 @@ class MapNavigator:
             inflated = dataclasses.replace(inflated, occupied_hw=inflated.occupied_hw & ~near)
         return grid, inflated
 
-    def _plan(self, pose: np.ndarray) -> np.ndarray:
-        """Choose a target (goal or frontier), plan to it; returns the next action."""
+    def _within_reach(self, footprint: np.ndarray, start: np.ndarray) -> float | None:
+        """Distance (m) from ``start`` to the footprint when close enough to stop, else None."""
+        near = float(np.min(np.linalg.norm(footprint - start, axis=1)))
+        if near <= self.config.standoff + 0.05 or (self._closest_approach and near <= self._closest_approach + 0.05):
+            return near
+        return None
+
+    def _plan(self, pose: np.ndarray, *, arrived: bool = False) -> np.ndarray:
+        """Choose a target (goal or frontier), plan to it; returns the next action. ``arrived``:
+        the base has just reached the end of a path to the goal."""
         goal_text = self._goal
         found = self.mapper.locate(goal_text)
         start = pose[:2]
+        if not found.found and arrived and self._seen is not None:
+            # Frames from close by can drop the goal's score under the floor just as the base
+            # arrives: it was seen here, so stop rather than wander off.
+            near = self._within_reach(self._seen, start)
+            if near is not None:
+                self._note(f"'{goal_text}' no longer stands out, but it was seen {near:.2f} m from here: stop")
+                return search_action(stop=True)
         grid, inflated = self._grids(start)
         target, self._to_goal = None, False
         if found.found:
-            footprint = found.best.points_n3[:, :2]
-            near = float(np.min(np.linalg.norm(footprint - start, axis=1)))
-            if near <= self.config.standoff + 0.05 or (self._closest_approach and near <= self._closest_approach + 0.05):
+            footprint = self._seen = found.best.points_n3[:, :2]
+            near = self._within_reach(footprint, start)
+            if near is not None:
                 self._note(f"'{goal_text}' is within reach ({near:.2f} m): stop")
                 return search_action(stop=True)
             target = reachable_goal_near(inflated, start, footprint, standoff=self.config.standoff)
@@ -202,7 +219,7 @@ class MapNavigator:
         cmd, self._track = pure_pursuit_step(pose, self._path, self._track, tracking)
         if cmd.done:
             if self._to_goal:
-                return self._plan(pose)  # re-check from here: stops when within reach
+                return self._plan(pose, arrived=True)  # re-check from here: stops when within reach
             self._phase, self._turned = "look", 0.0
             return search_action(0.0, self.config.look_angular)
         return search_action(cmd.linear, cmd.angular)

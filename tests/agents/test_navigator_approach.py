@@ -74,3 +74,33 @@ def test_stops_at_the_closest_free_point_when_none_lies_within_the_standoff(star
     final = float(np.linalg.norm(pose[:2] - GOAL))
     assert final <= agent._closest_approach + agent.config.goal_tolerance + 1e-6
     assert final < 1.0  # the search environment's success distance
+
+
+class _FadingMapper(_StaticMapper):
+    """The goal stops standing out once the base is within ``fade`` metres of it (close-by
+    frames pulling its score under the floor)."""
+
+    def __init__(self, points: np.ndarray, fade: float) -> None:
+        super().__init__(points)
+        self.fade, self.pose = fade, None
+
+    def integrate(self, observation, segmentation=None) -> None:
+        self.pose = np.asarray(observation["base_pose"], np.float64)
+
+    def locate(self, text):
+        if self.pose is not None and np.linalg.norm(self.pose[:2] - GOAL) < self.fade:
+            return SimpleNamespace(found=False, best=None)
+        return super().locate(text)
+
+
+def test_stops_where_it_saw_the_goal_when_the_goal_fades_on_arrival():
+    agent = MapNavigator(_FadingMapper(_world(0.3), fade=1.2), NavigatorConfig())
+    pose, stopped = _drive(agent)
+    assert stopped and float(np.linalg.norm(pose[:2] - GOAL)) <= agent.config.standoff + agent.config.goal_tolerance
+    assert any("no longer stands out" in line for line in agent.log), agent.log
+
+
+def test_a_goal_that_never_stood_out_is_not_stopped_at():
+    agent = MapNavigator(_FadingMapper(_world(0.3), fade=100.0), NavigatorConfig())
+    _drive(agent, steps=60)
+    assert not any("no longer stands out" in line or "within reach" in line for line in agent.log), agent.log
