@@ -474,9 +474,9 @@ class EpisodeRecorder:
         return self.mode == "all" or (self.mode == "failures" and (status != "ok" or not success))
 
     def finish(self, *, status: str, metrics: Mapping | None = None, error: str | None = None) -> list[Path]:
-        """Write the recording (and the final map, see :data:`MAP_BUDGET_BYTES`) and its video
-        if the mode asks for this outcome; returns the files written (none when it does not, or
-        nothing was recorded). Writing problems are logged, never raised."""
+        """Write the recording (and the final map, see :data:`MAP_BUDGET_BYTES`) if the mode
+        asks for this outcome; returns the files written (none when it does not, or nothing
+        was recorded). Writing problems are logged, never raised."""
         t0 = time.perf_counter()
         try:
             success = bool((metrics or {}).get("success", False))
@@ -487,26 +487,13 @@ class EpisodeRecorder:
             if rec is None:
                 return []
             rec.header["map"] = self._save_map()
-            saved = save_recording(rec, self.path)
-            self.written.append(saved)
-            self._video(saved)
+            self.written.append(save_recording(rec, self.path))
             return list(self.written)
         except Exception as exc:  # disk full, a map that cannot be saved: the episode's record stands
             _LOG.warning("recording of %s not written: %s: %s", self.header.get("episode_id"), type(exc).__name__, exc)
             return list(self.written)
         finally:
             self.seconds += time.perf_counter() - t0
-
-    def _video(self, saved: Path) -> None:
-        """Render the recording's video here, in the episode's worker: rendered by the report
-        afterwards, a run's few hundred failure videos took 35-40 s of one core after the last
-        episode. A recording that cannot be drawn keeps no video (logged); the report retries."""
-        from harness.replay.video import render_video
-
-        try:
-            self.written.append(render_video(saved))
-        except Exception as exc:  # an unknown task, a codec that fails: the recording stands
-            _LOG.warning("no video for %s: %s: %s", saved, type(exc).__name__, exc)
 
     def _save_map(self) -> dict:
         mapper = getattr(self.agent, "mapper", None)

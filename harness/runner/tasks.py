@@ -23,6 +23,7 @@ import numpy as np
 
 from agents.registry import AGENTS, make_agent
 from harness.replay.record import EpisodeRecorder
+from harness.replay.video import render_videos_of
 from harness.report.paths import REPLAYS_DIR, replay_stem
 from harness.runner.jobs import import_plugins, job_record
 from harness.runner.results import agent_label
@@ -256,8 +257,10 @@ def run_episode(job: EpisodeJob) -> dict:
         close_cached_envs()
         raise
     if recorder is not None:
-        recorder.finish(status=status, metrics=metrics, error=error)
-        timings = {**timings, "record_s": recorder.seconds}
+        written = recorder.finish(status=status, metrics=metrics, error=error)
+        t_video = time.perf_counter()
+        videos = render_videos_of(written)
+        timings = {**timings, "record_s": recorder.seconds, **({"video_s": time.perf_counter() - t_video} if videos else {})}
     timings = {**timings, "wall_s": time.perf_counter() - t0}
     return job_record(
         job, status=status, error=error,

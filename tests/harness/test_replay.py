@@ -212,18 +212,18 @@ def test_the_final_map_is_saved_only_under_the_budget(tmp_path, monkeypatch):
 
     assert recorder("ok").finish(status="ok", metrics={"success": True}) == []  # a success: nothing written
     monkeypatch.setattr(record_module, "MAP_BUDGET_BYTES", 0)
-    only, video = recorder("over").finish(status="ok", metrics={"success": False})
-    assert video.name == "over.mp4" and only.name == "over.npz" and "does not fit the 0 MB budget" in read_header(only)["map"]["skipped"]
+    (only,) = recorder("over").finish(status="ok", metrics={"success": False})
+    assert only.name == "over.npz" and "does not fit the 0 MB budget" in read_header(only)["map"]["skipped"]
     # a budget of a few points: the map is thinned on a voxel grid to fit, each kept point exact
     monkeypatch.setattr(record_module, "MAP_BUDGET_BYTES", the_map.nbytes() - 1)
     written = recorder("thin").finish(status="ok", metrics={"success": False})
     header = read_header(tmp_path / "thin.npz")["map"]
     thinned = load_map(tmp_path / "thin.map.npz")
     assert header["thinned_from"] == len(the_map) > header["points"] == len(thinned) > 0 and header["voxel_m"] > 0
-    assert thinned.nbytes() <= record_module.MAP_BUDGET_BYTES and len(written) == 3
+    assert thinned.nbytes() <= record_module.MAP_BUDGET_BYTES and len(written) == 2
     monkeypatch.setattr(record_module, "MAP_BUDGET_BYTES", 2**30)
     written = recorder("under").finish(status="failed", metrics={"success": False}, error="boom")
-    assert [p.name for p in written] == ["under.map.npz", "under.npz", "under.mp4"]
+    assert [p.name for p in written] == ["under.map.npz", "under.npz"]
     header = read_header(tmp_path / "under.npz")
     assert header["map"]["file"] == "under.map.npz" and header["error"] == "boom" and header["status"] == "failed"
     assert len(load_map(tmp_path / "under.map.npz").points) == header["map"]["points"] == len(the_map.points) > 0
