@@ -27,6 +27,15 @@ class Thinned:
     original_points: int
 
 
+def _cell_ids(pts: np.ndarray, voxel: float) -> np.ndarray:
+    """One int64 per point naming its voxel on a grid from the cloud's corner, (N,)."""
+    cells = np.floor((pts - pts.min(axis=0)) / voxel).astype(np.int64)
+    span = cells.max(axis=0) + 1
+    if float(span[0]) * float(span[1]) * float(span[2]) < 2.0**62:  # one integer per cell: a 1-D sort
+        return (cells[:, 0] * span[1] + cells[:, 1]) * span[2] + cells[:, 2]
+    return np.unique(cells, axis=0, return_inverse=True)[1].reshape(-1)  # a grid too fine for one key
+
+
 def voxel_representatives(points_n3: np.ndarray, confidence_n: np.ndarray, voxel: float) -> np.ndarray:
     """Index of the most confident point in each occupied voxel (ties: the lowest index),
     sorted ascending.
@@ -42,8 +51,7 @@ def voxel_representatives(points_n3: np.ndarray, confidence_n: np.ndarray, voxel
         raise ValueError(f"voxel: expected a positive edge in metres, got {voxel}")
     if len(pts) == 0:
         return np.zeros(0, np.int64)
-    cells = np.floor((pts - pts.min(axis=0)) / voxel).astype(np.int64)  # a grid from the cloud's corner
-    cell_id = np.unique(cells, axis=0, return_inverse=True)[1].reshape(-1)
+    cell_id = _cell_ids(pts, voxel)
     # most confident first, then lowest index, within each cell
     order = np.lexsort((np.arange(len(pts)), -conf, cell_id))
     sorted_cells = cell_id[order]
@@ -63,9 +71,8 @@ def thin_map(fmap: PointFusionMap, max_points: int, *, base_voxel: float = 0.01)
         return Thinned(fmap, 0.0, n)
     pts, conf = fmap.points, fmap.confidence
     k = 0
-    while True:
+    while True:  # count the occupied voxels (one per representative), pick them once it fits
         voxel = float(base_voxel) * 2.0 ** (k / 2)
-        keep = voxel_representatives(pts, conf, voxel)
-        if len(keep) <= max_points:
-            return Thinned(fmap.subset(keep), voxel, n)
+        if len(np.unique(_cell_ids(np.asarray(pts, np.float64), voxel))) <= max_points:
+            return Thinned(fmap.subset(voxel_representatives(pts, conf, voxel)), voxel, n)
         k += 1
