@@ -17,7 +17,7 @@ import numpy as np
 from gymnasium import spaces
 from scipy import ndimage
 
-from conceptfusion.errors import EnvStateError, SimError
+from conceptfusion.errors import EnvStateError, SimError, SimTypeError
 from conceptfusion.names import did_you_mean
 from planners.geodesic import geodesic_to_goal
 from sim_envs.envs.checks import (
@@ -72,7 +72,8 @@ class ObjectSearchEnv(EpisodeLifecycle, LastFrameRendering, gym.Env):
     sorted phrases it answers to (:func:`~sim_envs.scenes.descriptions.answer_phrases`), the
     goal id, the distance to the goal; at reset also the scene graph, the free cells ``free_grid`` (H, W) bool with
     ``grid_origin`` and ``grid_cell``, the goal's box ``goal_aabb`` (2, 3) and
-    ``success_distance``) is in ``info`` only.
+    ``success_distance``) is in ``info`` only; ``segmentation=False`` leaves the segmentation out
+    of ``info`` and skips its render pass (for agents that never read ``info``).
 
     **Episodes**: pass ``options={"episode": Episode}`` to reset (the harness does, from
     ``scenes/household/episodes-v1.jsonl``), or ``options={"episode_index": i}`` to pick the
@@ -110,10 +111,14 @@ class ObjectSearchEnv(EpisodeLifecycle, LastFrameRendering, gym.Env):
         control_dt: float = 0.5,
         max_steps: int | None = None,
         scenes_root: str | None = None,
+        segmentation: bool = True,
         render_mode: str | None = None,
     ) -> None:
         where = self.env_name
         check_render_mode(render_mode)
+        if not isinstance(segmentation, (bool, np.bool_)):
+            raise SimTypeError(f"{where}: segmentation: expected True or False, got {segmentation!r}")
+        self.segmentation = bool(segmentation)
         width, height = check_image_size(where, width, height)
         fovy_deg = check_fovy(where, fovy_deg)
         camera_pitch_deg = check_number(where, "camera_pitch_deg", camera_pitch_deg, low=-90.0, high=90.0, low_open=True, high_open=True)
@@ -267,13 +272,13 @@ class ObjectSearchEnv(EpisodeLifecycle, LastFrameRendering, gym.Env):
 
     def _observe(self):
         self._camera.set_pose(*self.camera_eye_target())
-        f = self._camera.render()
+        f = self._camera.render(segmentation=self.segmentation)
         self._last_frame = f
         obs = {**f.observation(), "base_pose": self._pose.copy(), "goal": self.episode.instruction}
         info = {
             "episode_id": self.episode.episode_id,
             "scene_id": self.scene.id,
-            "segmentation": f.segmentation,
+            **({"segmentation": f.segmentation} if self.segmentation else {}),
             "object_ids": [o.id for o in self.scene.objects],
             "object_names": [o.name for o in self.scene.objects],
             "object_phrases": [list(p) for p in self._object_phrases],

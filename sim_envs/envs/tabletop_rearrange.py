@@ -116,7 +116,8 @@ class TabletopRearrangeEnv(EpisodeLifecycle, LastFrameRendering, gym.Env):
     answers to: :func:`~sim_envs.scenes.descriptions.answer_phrases`), ``object_poses`` (n, 7), ``object_aabbs`` (n, 2, 3),
     ``object_sizes`` (n, 3) (box size in the object frame, base at its origin; these three are
     nested lists, since n varies between scenes and vector envs batch array-valued info),
-    ``scan_segmentation`` (n, h, w) int32 (with ``scan_frames``),
+    ``scan_segmentation`` (n, h, w) int32 (with ``scan_frames``; ``segmentation=False`` leaves out
+    both segmentations and their render pass, for agents that never read ``info``),
     ``target_ids``, ``target_sides``, ``line``, ``right_normal``, ``view_dir``, ``table_xy`` (2, 2)
     (lower, upper table corner), ``scene_graph`` (MuJoCo backend; ``None`` otherwise), ``last_push``,
     ``evaluation``, ``success``, ``steps``, ``episode_id``, ``scene_id``.
@@ -153,6 +154,7 @@ class TabletopRearrangeEnv(EpisodeLifecycle, LastFrameRendering, gym.Env):
         scan_frames: int = 0,
         scan_width: int | None = None,
         scan_height: int | None = None,
+        segmentation: bool = True,
         render_mode: str | None = None,
     ) -> None:
         where = self.env_name
@@ -180,6 +182,9 @@ class TabletopRearrangeEnv(EpisodeLifecycle, LastFrameRendering, gym.Env):
                 "line": spaces.Box(-np.inf, np.inf, (2, 2), np.float64),
             }
         )
+        if not isinstance(segmentation, (bool, np.bool_)):
+            raise SimTypeError(f"{where}: segmentation: expected True or False, got {segmentation!r}")
+        self.segmentation = bool(segmentation)
         self.scan_frames = int(scan_frames)
         self.scan_width, self.scan_height = int(scan_width or width), int(scan_height or height)
         if self.scan_frames:
@@ -272,24 +277,25 @@ class TabletopRearrangeEnv(EpisodeLifecycle, LastFrameRendering, gym.Env):
     def _observe(self):
         scene = self.sim.scene
         eye, target = camera_pose(scene)
-        f = self.sim.render(eye, target, self.width, self.height, self.fovy_deg, True)
+        f = self.sim.render(eye, target, self.width, self.height, self.fovy_deg, self.segmentation)
         self._last_frame = f
         self._result = self._evaluate()
         obs = {**f.observation(), "instruction": self.episode.instruction, "line": np.asarray(scene.line, np.float64)[:, :2].copy()}
         scan_seg = None
         if self.scan_frames:
-            frames = self._scan(self.scan_frames, self.scan_width, self.scan_height, True)
+            frames = self._scan(self.scan_frames, self.scan_width, self.scan_height, self.segmentation)
             obs["scan_rgb"] = np.stack([fr.rgb for fr in frames])
             obs["scan_depth"] = np.stack([fr.depth for fr in frames]).astype(np.float32)
             obs["scan_K"] = np.stack([fr.K for fr in frames]).astype(np.float64)
             obs["scan_cam_to_world"] = np.stack([fr.cam_to_world for fr in frames]).astype(np.float64)
-            scan_seg = np.stack([fr.segmentation for fr in frames]).astype(np.int32)
+            if self.segmentation:
+                scan_seg = np.stack([fr.segmentation for fr in frames]).astype(np.int32)
         p0, n = line_normal(scene)
         half = np.asarray(scene.table.size[:2]) / 2
         info = {
             "episode_id": self.episode.episode_id,
             "scene_id": scene.id,
-            "segmentation": f.segmentation,
+            **({"segmentation": f.segmentation} if self.segmentation else {}),
             **({"scan_segmentation": scan_seg} if scan_seg is not None else {}),
             "object_ids": [o.id for o in scene.objects],
             "object_names": [o.name for o in scene.objects],

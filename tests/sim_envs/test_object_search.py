@@ -117,3 +117,18 @@ def test_same_episode_same_frames(episodes):
         frames.append((obs["rgb"].copy(), obs["base_pose"].copy()))
         e.close()
     assert np.array_equal(frames[0][0], frames[1][0]) and np.array_equal(frames[0][1], frames[1][1])
+
+
+def test_without_segmentation_the_observations_are_the_same_and_info_has_none():
+    frames = {}
+    for seg in (True, False):
+        e = ObjectSearchEnv(width=64, height=48, segmentation=seg)
+        obs, info = e.reset(seed=1)
+        obs, *_, info = e.step(np.array([0.2, 0.5, 0.0], np.float32))
+        assert ("segmentation" in info) == seg
+        frames[seg] = obs
+        e.close()
+    for key in ("rgb", "depth", "cam_to_world", "base_pose"):
+        assert np.array_equal(frames[True][key], frames[False][key], equal_nan=True), key
+    with pytest.raises(TypeError, match="segmentation: expected True or False"):
+        ObjectSearchEnv(segmentation=1)

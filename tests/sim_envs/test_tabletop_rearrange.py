@@ -176,3 +176,18 @@ def test_pybullet_backend_is_selected_by_name():
     _, _, _, _, info = env.step(np.array([0.59, 0.39, 0.0, 0.01, 0.0], np.float32))
     assert "executed" in info["last_push"] and info["success"] is False
     env.close()
+
+
+def test_without_segmentation_the_observations_are_the_same_and_info_has_none():
+    obs = {}
+    for seg in (True, False):
+        env = _env(scan_frames=2, segmentation=seg)
+        o, info = env.reset(seed=3)
+        o, *_, info = env.step(np.array([0.0, 0.0, 0.3, 0.1, 0.0]))
+        assert ("segmentation" in info) == seg and ("scan_segmentation" in info) == seg
+        obs[seg] = o
+        env.close()
+    for key in ("rgb", "depth", "scan_rgb", "scan_depth", "scan_cam_to_world"):
+        assert np.array_equal(obs[True][key], obs[False][key], equal_nan=True), key
+    with pytest.raises(TypeError, match="segmentation: expected True or False"):
+        _env(segmentation="no")
