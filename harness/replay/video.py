@@ -336,15 +336,7 @@ def render_missing_videos(run_dir: str | os.PathLike) -> list[Path]:
     folder = Path(run_dir) / REPLAYS_DIR
     if not folder.is_dir():
         return []
-    written = []
-    for path in sorted(folder.glob("*.npz")):
-        if not is_recording_file(path) or video_path(path) is not None:
-            continue
-        try:
-            written.append(render_video(path))
-        except (ConceptFusionError, OSError, ValueError) as exc:
-            _LOG.warning("no video for %s: %s", path, exc)
-    return written
+    return render_videos_of(p for p in sorted(folder.glob("*.npz")) if video_path(p) is None)
 
 
 def render_videos_of(paths) -> list[Path]:
