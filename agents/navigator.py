@@ -100,6 +100,8 @@ class MapNavigator:
 
     def __init__(self, mapper: ConceptMapper, config: NavigatorConfig = NavigatorConfig(), *, seed: int = 0) -> None:
         self.mapper, self.config, self.seed = mapper, config, int(seed)
+        self._goal_tracking = dataclasses.replace(config.tracking, goal_tolerance=config.goal_tolerance)
+        """The tracker's settings on paths to the goal (frontier paths use ``config.tracking``)."""
         self.privileged = mapper.privileged
         self.reset()
 
@@ -213,9 +215,7 @@ class MapNavigator:
         return self._follow(pose)
 
     def _follow(self, pose: np.ndarray) -> np.ndarray:
-        tracking = self.config.tracking
-        if self._to_goal:
-            tracking = dataclasses.replace(tracking, goal_tolerance=self.config.goal_tolerance)
+        tracking = self._goal_tracking if self._to_goal else self.config.tracking
         cmd, self._track = pure_pursuit_step(pose, self._path, self._track, tracking)
         if cmd.done:
             if self._to_goal:

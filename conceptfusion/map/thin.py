@@ -69,10 +69,10 @@ def thin_map(fmap: PointFusionMap, max_points: int, *, base_voxel: float = 0.01)
     n = len(fmap)
     if n <= max_points:
         return Thinned(fmap, 0.0, n)
-    pts, conf = fmap.points, fmap.confidence
+    pts, conf = np.asarray(fmap.points, np.float64), fmap.confidence
     k = 0
     while True:  # count the occupied voxels (one per representative), pick them once it fits
         voxel = float(base_voxel) * 2.0 ** (k / 2)
-        if len(np.unique(_cell_ids(np.asarray(pts, np.float64), voxel))) <= max_points:
+        if len(np.unique(_cell_ids(pts, voxel))) <= max_points:
             return Thinned(fmap.subset(voxel_representatives(pts, conf, voxel)), voxel, n)
         k += 1

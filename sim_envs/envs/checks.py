@@ -33,6 +33,7 @@ from conceptfusion.names import did_you_mean
 from sim_envs.scenes.episodes import Episode, EpisodeSet, Goal, load_episodes
 
 __all__ = [
+    "check_bool",
     "MAX_IMAGE_SIDE",
     "EpisodeLifecycle",
     "check_int",
@@ -113,6 +114,13 @@ class EpisodeLifecycle:
 
 
 # --------------------------------------------------------------------------- constructor arguments
+def check_bool(where: str, name: str, value: Any) -> bool:
+    """``value`` as a ``bool``; anything but ``True``, ``False`` (or a numpy bool) is refused."""
+    if not isinstance(value, (bool, np.bool_)):
+        raise SimTypeError(f"{where}: {name}: expected True or False, got {value!r}")
+    return bool(value)
+
+
 def check_int(where: str, name: str, value: Any, *, minimum: int, allow_none: bool = False) -> int | None:
     """``value`` as an ``int`` >= ``minimum`` (``None`` passes with ``allow_none``); bools,
     floats and strings are refused."""

@@ -17,11 +17,11 @@ import numpy as np
 from gymnasium import spaces
 from scipy import ndimage
 
-from conceptfusion.errors import EnvStateError, SimError, SimTypeError
+from conceptfusion.errors import EnvStateError, SimError
 from conceptfusion.names import did_you_mean
 from planners.geodesic import geodesic_to_goal
 from sim_envs.envs.checks import (
-    EpisodeLifecycle, check_action, check_episode, check_episode_set, check_fovy, check_image_size, check_int, check_number,
+    EpisodeLifecycle, check_action, check_bool, check_episode, check_episode_set, check_fovy, check_image_size, check_int, check_number,
     check_scenes_root, episode_from_options,
 )
 from sim_envs.envs.rendering import LastFrameRendering, check_render_mode, frame_spaces
@@ -116,9 +116,7 @@ class ObjectSearchEnv(EpisodeLifecycle, LastFrameRendering, gym.Env):
     ) -> None:
         where = self.env_name
         check_render_mode(render_mode)
-        if not isinstance(segmentation, (bool, np.bool_)):
-            raise SimTypeError(f"{where}: segmentation: expected True or False, got {segmentation!r}")
-        self.segmentation = bool(segmentation)
+        self.segmentation = check_bool(where, "segmentation", segmentation)
         width, height = check_image_size(where, width, height)
         fovy_deg = check_fovy(where, fovy_deg)
         camera_pitch_deg = check_number(where, "camera_pitch_deg", camera_pitch_deg, low=-90.0, high=90.0, low_open=True, high_open=True)

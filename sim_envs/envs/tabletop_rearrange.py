@@ -15,7 +15,7 @@ from conceptfusion.errors import SimError, SimTypeError
 from sim_envs.scenes.episodes import MAX_LINE_DISTANCE, Episode, EpisodeSet, resolve_scene, tabletop_goals, tabletop_instruction
 from conceptfusion.frames import RGBDFrame
 from sim_envs.envs.checks import (
-    EpisodeLifecycle, check_action, check_choice, check_episode, check_episode_set, check_fovy, check_image_size, check_int,
+    EpisodeLifecycle, check_action, check_bool, check_choice, check_episode, check_episode_set, check_fovy, check_image_size, check_int,
     check_scenes_root, episode_from_options,
 )
 from sim_envs.envs.rearrange_eval import VIEW_DIR, RearrangeResult, evaluate, line_normal
@@ -182,9 +182,7 @@ class TabletopRearrangeEnv(EpisodeLifecycle, LastFrameRendering, gym.Env):
                 "line": spaces.Box(-np.inf, np.inf, (2, 2), np.float64),
             }
         )
-        if not isinstance(segmentation, (bool, np.bool_)):
-            raise SimTypeError(f"{where}: segmentation: expected True or False, got {segmentation!r}")
-        self.segmentation = bool(segmentation)
+        self.segmentation = check_bool(where, "segmentation", segmentation)
         self.scan_frames = int(scan_frames)
         self.scan_width, self.scan_height = int(scan_width or width), int(scan_height or height)
         if self.scan_frames:
