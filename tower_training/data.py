@@ -42,6 +42,8 @@ __all__ = [
     "ObjectClass",
     "BACKGROUND_CLASS",
     "SCENE_CLASS",
+    "ROOM_BACKGROUND_CLASS",
+    "ROOM_SCENE_CLASS",
     "SOURCES",
     "instance_classes",
     "CropConfig",
@@ -75,6 +77,12 @@ BACKGROUND_CLASS = ObjectClass("table or floor", ("a wooden table", "the floor",
 
 SCENE_CLASS = ObjectClass("a table with objects", ("a table with objects", "objects on a table", "a tabletop scene"))
 """Label of whole-frame views (the global embedding)."""
+
+ROOM_BACKGROUND_CLASS = ObjectClass("wall, floor or furniture", ("a wall", "the floor", "a piece of furniture"))
+"""Label of proposer masks that cover no object in an apartment view (walls, floors, sofas, shelves)."""
+
+ROOM_SCENE_CLASS = ObjectClass("a room of a home", ("a room of a home", "a room with furniture", "the inside of a house"))
+"""Label of whole apartment views."""
 
 
 def instance_classes(colors: Sequence[str], categories: Mapping[str, Sequence[str]]) -> list[ObjectClass]:
@@ -162,6 +170,29 @@ class CropData:
         idx = np.flatnonzero(np.asarray(mask, bool))
         return CropData([self.images[i] for i in idx], self.labels[idx], self.sources[idx], self.seeds[idx],
                         self.views[idx], self.class_names)
+
+    @classmethod
+    def concat(cls, parts: Sequence["CropData"]) -> "CropData":
+        """One set of the crops of ``parts``, in order; class names are the union (first
+        appearance order) and each part's labels are re-indexed into it. View numbers are
+        offset so that views of different parts stay distinct."""
+        if not parts:
+            raise ValueError("parts: expected at least one CropData")
+        names: list[str] = []
+        for p in parts:
+            names += [n for n in p.class_names if n not in names]
+        index = {n: i for i, n in enumerate(names)}
+        images, labels, sources, seeds, views, offset = [], [], [], [], [], 0
+        for p in parts:
+            remap = np.array([index[n] for n in p.class_names], np.int64)
+            images += list(p.images)
+            labels.append(remap[p.labels] if len(p) else np.zeros(0, np.int64))
+            sources.append(p.sources)
+            seeds.append(p.seeds)
+            views.append(p.views + offset)
+            offset += int(p.views.max()) + 1 if len(p) else 0
+        return cls(images, np.concatenate(labels), np.concatenate(sources), np.concatenate(seeds),
+                   np.concatenate(views), tuple(names))
 
     def save(self, path: str | Path) -> Path:
         """Write one compressed ``.npz`` atomically (pixels concatenated, with per-crop shapes)."""
@@ -306,6 +337,8 @@ def build_crop_data(
     *,
     proposer=None,
     config: CropConfig = CropConfig(),
+    background_class: ObjectClass = BACKGROUND_CLASS,
+    scene_class: ObjectClass = SCENE_CLASS,
 ) -> CropData:
     """Crops of many labelled views.
 
@@ -314,18 +347,20 @@ def build_crop_data(
             :class:`~conceptfusion.frames.RGBDFrame` with ``segmentation``, a ``scene_seed``
             and ``object_names``).
         classes: the label vocabulary; objects whose name is not a class get no crop. The
-            background and scene crops are made only when :data:`BACKGROUND_CLASS` /
-            :data:`SCENE_CLASS` are in it.
+            background and scene crops are made only when ``background_class`` /
+            ``scene_class`` are in it.
         rng: randomness of the crops.
         proposer: a mask proposer (``propose(rgb, depth, K)``), or ``None`` for
             ground-truth crops (and frames) only.
+        background_class, scene_class: the labels of background masks and whole views
+            (default: the table's, :data:`BACKGROUND_CLASS` and :data:`SCENE_CLASS`).
     """
     names = [c.name for c in classes]
     if len(set(names)) != len(names):
         raise ValueError("classes: expected distinct class names")
     index = {n: i for i, n in enumerate(names)}
-    bg = index.get(BACKGROUND_CLASS.name)
-    sc = index.get(SCENE_CLASS.name)
+    bg = index.get(background_class.name)
+    sc = index.get(scene_class.name)
     images, labels, sources, seeds, view_ids = [], [], [], [], []
     for v, view in enumerate(views):
         obj_labels = [index.get(n, -1) for n in view.object_names]

@@ -29,9 +29,12 @@ import numpy as np
 from sim_envs.assets.library import catalogue
 from sim_envs.scenes.splits import Splits, splits
 from tower_training.captions import CaptionBank, Caption, caption_bank, instance_captions
-from tower_training.data import BACKGROUND_CLASS, SCENE_CLASS, CropConfig, CropData, ObjectClass
+from tower_training.data import (
+    BACKGROUND_CLASS, ROOM_BACKGROUND_CLASS, ROOM_SCENE_CLASS, SCENE_CLASS, CropConfig, CropData, ObjectClass,
+)
 
-__all__ = ["DataConfigV2", "SETS", "library_classes", "train_caption_bank", "render_crop_data_v2", "split_summary"]
+__all__ = ["DataConfigV2", "RoomDataConfig", "ROOM_TEST", "SETS", "SPECIAL_CLASSES", "library_classes", "train_caption_bank",
+           "render_crop_data_v2", "render_room_crop_data", "split_summary"]
 
 logger = logging.getLogger(__name__)
 
@@ -64,6 +67,49 @@ class DataConfigV2:
         return split.seeds_of(SETS[which], n)
 
 
+@dataclass(frozen=True)
+class RoomDataConfig:
+    """Views of household v2 apartments from a robot base's height
+    (:mod:`tower_training.room_views`). Training apartments have ``tower_train`` seeds, so TRAIN
+    instances only; the test apartments (:data:`ROOM_TEST`) ``evaluation`` seeds."""
+
+    scenes: int = 120
+    """Apartments: seeds ``seed0 ..``."""
+    seed0: int = 140_000
+    """First apartment seed: inside ``tower_train`` and past the table arrangements' seeds."""
+    role: str = "tower_train"
+    """The seed role every apartment seed must have (the split file's ranges)."""
+    views_per_scene: int = 10
+    """Random views per apartment."""
+    width: int = 320
+    height: int = 240
+    seed: int = 0
+    """Seeds the cameras, lights and crop jitter (the apartments follow from their seeds)."""
+    crops: CropConfig = CropConfig()
+    """How crops are cut."""
+
+    def scene_seeds(self, split: Splits) -> list[int]:
+        """The apartment seeds; each must lie in the range of ``role``."""
+        from sim_envs.scenes.splits import SplitError
+
+        seeds = list(range(self.seed0, self.seed0 + self.scenes))
+        bad = [s for s in seeds if split.seed_role(s) != self.role]
+        if bad:
+            raise SplitError(f"RoomDataConfig: seeds {bad[0]}..{bad[-1]} lie outside the {self.role} range "
+                             f"{split.seeds.get(self.role)}")
+        return seeds
+
+
+ROOM_TEST = RoomDataConfig(scenes=20, seed0=305_000, role="evaluation", seed=1)
+"""The tower's held-out apartment views: 20 apartments of ``evaluation`` seeds that no shipped
+scene uses (``household-v2`` scenes are 300000-300019), 10 views each, with TRAIN, VAL and TEST
+instances. Read once per tower, after model selection (``room_test/...`` metrics)."""
+
+
+SPECIAL_CLASSES = (BACKGROUND_CLASS, SCENE_CLASS, ROOM_BACKGROUND_CLASS, ROOM_SCENE_CLASS)
+"""The classes that are no object: background masks and whole views, of tables and of rooms."""
+
+
 def library_classes() -> list[ObjectClass]:
     """One class per library instance (name: the instance id), catalogue order; phrases are its
     captions, category and colour filled in."""
@@ -75,15 +121,16 @@ def library_classes() -> list[ObjectClass]:
 def train_caption_bank(split: Splits | None = None) -> CaptionBank:
     """The captions of TRAIN instances, plus the background and scene classes' phrases.
 
-    Classes: TRAIN instance ids (sorted), then ``BACKGROUND_CLASS.name``, ``SCENE_CLASS.name``.
-    No text of a VAL or TEST category name enters the bank unless a train category shares it.
+    Classes: TRAIN instance ids (sorted), then the :data:`SPECIAL_CLASSES` (table background,
+    table scene, room background, room scene). No text of a VAL or TEST category name enters the
+    bank unless a train category shares it.
     """
     split = splits() if split is None else split
     cat = catalogue()
     pairs = [(iid, instance_captions(cat.instances[iid], cat)) for iid in split.instances_of("train")]
-    for special in (BACKGROUND_CLASS, SCENE_CLASS):
-        pairs.append((special.name, [Caption(p, "background" if special is BACKGROUND_CLASS else "scene")
-                                     for p in special.phrases]))
+    for special in SPECIAL_CLASSES:
+        kind = "background" if special in (BACKGROUND_CLASS, ROOM_BACKGROUND_CLASS) else "scene"
+        pairs.append((special.name, [Caption(p, kind) for p in special.phrases]))
     return caption_bank(pairs)
 
 
@@ -139,6 +186,37 @@ def render_crop_data_v2(config: DataConfigV2, cache_dir: Path | None = None, *, 
     return data
 
 
+def render_room_crop_data(config: RoomDataConfig, cache_dir: Path | None = None, *, proposer=None) -> CropData:
+    """Render (or load from the cache) the crops of the training apartments' views.
+
+    Labels index ``library_classes() + list(SPECIAL_CLASSES)``; background masks are labelled
+    :data:`~tower_training.data.ROOM_BACKGROUND_CLASS`, whole views
+    :data:`~tower_training.data.ROOM_SCENE_CLASS`.
+    """
+    if cache_dir is not None:
+        from sim_envs.assets.library import catalogue_hash
+
+        key_src = json.dumps({"rooms": asdict(config), "catalogue": catalogue_hash()}, sort_keys=True)
+        path = Path(cache_dir) / f"tower_crops_rooms_{hashlib.sha256(key_src.encode()).hexdigest()[:16]}.npz"
+        if path.is_file():
+            logger.info("room crop data from cache %s", path)
+            return CropData.load(path)
+    from conceptfusion.perception.masks.registry import make_proposer
+    from tower_training.data import build_crop_data
+    from tower_training.room_views import RoomViewConfig, random_room_views
+
+    rng = np.random.default_rng(config.seed)
+    views = random_room_views(config.scene_seeds(splits()), config.views_per_scene, rng,
+                              RoomViewConfig(width=config.width, height=config.height))
+    data = build_crop_data(views, library_classes() + list(SPECIAL_CLASSES), rng,
+                           proposer=make_proposer("rgbd") if proposer is None else proposer, config=config.crops,
+                           background_class=ROOM_BACKGROUND_CLASS, scene_class=ROOM_SCENE_CLASS)
+    if cache_dir is not None:
+        data.save(path)
+        logger.info("room crop data cached at %s", path)
+    return data
+
+
 if __name__ == "__main__":  # render the default data into the default cache
     import os
     import sys
@@ -146,4 +224,6 @@ if __name__ == "__main__":  # render the default data into the default cache
     logging.basicConfig(level=logging.INFO, format="%(asctime)s %(name)s: %(message)s")
     cache = Path(sys.argv[1] if len(sys.argv) > 1 else os.path.join(os.path.expanduser("~/.cache"), "conceptfusion"))
     d = render_crop_data_v2(DataConfigV2(), cache)
-    print(len(d), "crops")
+    print(len(d), "table crops")
+    r = render_room_crop_data(RoomDataConfig(), cache)
+    print(len(r), "room crops")

@@ -11,7 +11,7 @@ from sim_envs.scenes.splits import splits
 from tower_training.captions import article, caption_bank, instance_captions
 from tower_training.data import BACKGROUND_CLASS, SCENE_CLASS, SOURCES
 from tower_training.library_views import TABLE, arrange_table, pool_for_seed_role
-from tower_training.world_v2 import DataConfigV2, render_crop_data_v2, train_caption_bank
+from tower_training.world_v2 import SPECIAL_CLASSES, DataConfigV2, render_crop_data_v2, train_caption_bank
 
 
 def test_captions_of_an_instance_cover_every_kind():
@@ -42,8 +42,9 @@ def test_caption_bank_shares_texts_and_marks_positives():
 def test_training_bank_holds_only_train_instances_and_no_held_out_category_name():
     split = splits()
     bank = train_caption_bank(split)
-    assert set(bank.class_names[:-2]) == set(split.instances_of("train"))
-    assert bank.class_names[-2:] == (BACKGROUND_CLASS.name, SCENE_CLASS.name)
+    assert set(bank.class_names[:-4]) == set(split.instances_of("train"))
+    assert bank.class_names[-4:] == tuple(c.name for c in SPECIAL_CLASSES)
+    assert bank.class_names[-4:-2] == (BACKGROUND_CLASS.name, SCENE_CLASS.name)
     held = set(split.categories_of("val")) | set(split.categories_of("test"))
     for name in held:
         assert name not in bank.texts and article(name) not in bank.texts
@@ -135,3 +136,64 @@ def test_topk_counts_a_correct_text_among_the_k_best():
     assert topk(emb, texts, ok, 1) == 0.0  # each row's best text is the wrong one
     assert topk(emb, texts, ok, 2) == 1.0
     assert math.isnan(topk(np.zeros((0, 2)), texts, np.zeros((0, 3), bool)))
+
+
+def test_room_views_show_train_instances_from_a_base_height_on_free_floor():
+    from tower_training.room_views import RoomViewConfig, random_room_views
+    from tower_training.world_v2 import RoomDataConfig
+
+    split = splits()
+    cfg = RoomViewConfig(width=160, height=120)
+    seeds = RoomDataConfig(scenes=1).scene_seeds(split)
+    views = list(random_room_views(seeds, 4, np.random.default_rng(0), cfg))
+    again = list(random_room_views(seeds, 4, np.random.default_rng(0), cfg))
+    assert len(views) == 4
+    assert all(np.array_equal(a.frame.rgb, b.frame.rgb) for a, b in zip(views, again))  # seeded
+    seen = set()
+    for v in views:
+        eye = v.frame.cam_to_world[:3, 3]
+        assert cfg.eye_height_m[0] - 1e-6 <= eye[2] <= cfg.eye_height_m[1] + 1e-6
+        seg = v.frame.segmentation
+        seen |= {v.object_names[i] for i in np.unique(seg[seg >= 0])}
+    assert seen, "no view shows any object"
+    assert {split.instances[i] for i in views[0].object_names} == {"train"}
+
+
+def test_room_seeds_must_lie_in_their_role():
+    from sim_envs.scenes.splits import SplitError
+    from tower_training.world_v2 import ROOM_TEST, RoomDataConfig
+
+    split = splits()
+    assert all(split.seed_role(s) == "evaluation" for s in ROOM_TEST.scene_seeds(split))
+    with pytest.raises(SplitError, match="outside the tower_train range"):
+        RoomDataConfig(seed0=149_990, scenes=20).scene_seeds(split)
+    with pytest.raises(SplitError, match="outside the evaluation range"):
+        RoomDataConfig(seed0=100_000, scenes=1, role="evaluation").scene_seeds(split)
+
+
+def test_crop_data_concat_reindexes_labels_by_class_name():
+    from tower_training.data import CropData
+
+    img = np.zeros((4, 4, 3), np.uint8)
+    a = CropData([img, img], np.array([0, 1]), np.array([0, 0]), np.array([1, 1]), np.array([0, 1]), ("x", "y"))
+    b = CropData([img], np.array([1]), np.array([2]), np.array([7]), np.array([0]), ("z", "x"))
+    c = CropData.concat([a, b])
+    assert c.class_names == ("x", "y", "z")
+    assert [c.class_names[l] for l in c.labels] == ["x", "y", "x"]
+    assert c.views.tolist() == [0, 1, 2] and c.seeds.tolist() == [1, 1, 7] and c.sources.tolist() == [0, 0, 2]
+    with pytest.raises(ValueError, match="at least one"):
+        CropData.concat([])
+
+
+def test_low_res_augmentation_shrinks_and_is_off_by_default():
+    from tower_training.training import augment, shrink
+
+    img = np.random.default_rng(0).integers(0, 255, (40, 60, 3), dtype=np.uint8)
+    assert shrink(img, 2.0).shape == (20, 30, 3)
+    assert shrink(img, 100.0).shape == (2, 2, 3)
+    assert shrink(img, 1.0) is img
+    # p = 0 draws nothing extra from the generator: the v1 recipe's crops are unchanged
+    r1, r2 = np.random.default_rng(3), np.random.default_rng(3)
+    assert np.array_equal(augment(img, r1), augment(img, r2, low_res_p=0.0))
+    small = [augment(img, np.random.default_rng(s), low_res_p=1.0, low_res_scale=(3.0, 3.0)).shape[0] for s in range(5)]
+    assert max(small) <= 15  # 40 / 3, then the random crop can only cut
