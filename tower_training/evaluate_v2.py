@@ -35,7 +35,7 @@ from sim_envs.scenes.splits import Splits
 from tower_training.captions import article
 from tower_training.data import BACKGROUND_CLASS, SOURCES, CropData
 
-__all__ = ["crop_sets", "topk", "evaluate_crops_v2", "val_selection_fn"]
+__all__ = ["crop_sets", "topk", "half_res", "evaluate_crops_v2", "val_selection_fn"]
 
 
 def topk(emb_nd: np.ndarray, texts_td: np.ndarray, correct_nt: np.ndarray, k: int = 1) -> float:
@@ -80,9 +80,20 @@ def _embed(embed_fn, data: CropData, mask: np.ndarray) -> np.ndarray:
     return np.asarray(embed_fn([data.images[i] for i in idx]), np.float32) if len(idx) else np.zeros((0, 1), np.float32)
 
 
-def val_selection_fn(text_encoder, data: CropData, split: Splits, val_seeds: list[int]) -> Callable:
+def half_res(images) -> list[np.ndarray]:
+    """Each crop shrunk by 2 on both sides (area interpolation): how it looks when the frame is
+    rendered at half the size (160x120 instead of 320x240), as the agents' and map suites' are."""
+    from tower_training.training import shrink
+
+    return [shrink(im, 2.0) for im in images]
+
+
+def val_selection_fn(text_encoder, data: CropData, split: Splits, val_seeds: list[int], *,
+                     half_res_too: bool = False) -> Callable:
     """``select(embed_fn) -> float``: name top-1 among all library category names over every
-    validation crop (VAL instances of train categories and VAL categories, VAL views only)."""
+    validation crop (VAL instances of train categories and VAL categories, VAL views only);
+    with ``half_res_too``, the mean of that and the same figure on the crops at half resolution
+    (:func:`half_res`)."""
     cat = catalogue()
     sets = crop_sets(data, split, {"val": val_seeds, "test": []})
     mask = sets["val_instances"] | sets["val_categories"]
@@ -90,11 +101,15 @@ def val_selection_fn(text_encoder, data: CropData, split: Splits, val_seeds: lis
     cats = sorted(cat.categories)
     t_names = np.asarray(text_encoder.encode_text(cats), np.float32)
     truth = np.array([cats.index(cat.instances[data.class_names[data.labels[i]]].category) for i in idx])
-    images = [data.images[i] for i in idx]
+    image_sets = [[data.images[i] for i in idx]]
+    if half_res_too:
+        image_sets.append(half_res(image_sets[0]))
 
     def select(embed_fn) -> float:
-        e = np.asarray(embed_fn(images), np.float32)
-        return float(np.mean(np.argmax(e @ t_names.T, axis=1) == truth)) if len(idx) else float("nan")
+        if not len(idx):
+            return float("nan")
+        hits = [np.mean(np.argmax(np.asarray(embed_fn(ims), np.float32) @ t_names.T, axis=1) == truth) for ims in image_sets]
+        return float(np.mean(hits))
 
     return select
 
@@ -142,6 +157,12 @@ def evaluate_crops_v2(embed_fn, text_encoder, data: CropData, split: Splits, set
             hi = np.array([cats.index(h) for h in held], np.int64)
             out[f"{key}/name_among_held_out"] = {"top1": topk(e, t_names[hi], onehot[:, hi]), "n": n,
                                                  "candidates": len(held)}
+        if key in ("seen_unseen_view", "held_out_instances", "held_out_categories", "val_instances"):
+            # the same crops as a 160x120 frame shows them
+            e_half = np.asarray(embed_fn(half_res([data.images[r] for r in rows])), np.float32) if n else e
+            out[f"{key}/name_half_res"] = {"top1": topk(e_half, t_names, onehot), "n": n}
+            if key == "held_out_categories":
+                out[f"{key}/name_half_res"]["top5"] = topk(e_half, t_names, onehot, 5)
         if not key.startswith("seen_unseen_view") and key != "held_out_instances":
             continue
         # query kinds on seen objects (and held-out instances)

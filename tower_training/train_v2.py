@@ -2,13 +2,17 @@
 
 1. render (or load) crops of random table arrangements of library instances
    (:mod:`tower_training.world_v2`): TRAIN instances in ``tower_train`` views, VAL instances in
-   ``tower_val`` views, TRAIN + TEST instances in ``evaluation`` views;
+   ``tower_val`` views, TRAIN + TEST instances in ``evaluation`` views; and crops of apartment
+   views from a robot base's height (:mod:`tower_training.room_views`): ``tower_train``
+   apartments for training, the held-out :data:`~tower_training.world_v2.ROOM_TEST` apartments
+   for the ``room_test/`` figures;
 2. train the same architecture against the frozen MiniLM text tower with the multi-caption loss
    (:func:`tower_training.training.train_tower_multicaption`): each crop against every caption
    of its instance (:mod:`tower_training.captions`), the other positives masked from the
-   negatives; the bank holds TRAIN instances' captions only;
-3. select the checkpoint with the best VALIDATION name top-1 among all library category names
-   (:func:`tower_training.evaluate_v2.val_selection_fn`);
+   negatives; the bank holds TRAIN instances' captions only; half the crops are first shrunk
+   1-4x (``--low-res-p``), as objects look in the 160x120 frames agents render;
+3. select the checkpoint with the best VALIDATION name top-1 among all library category names,
+   the mean of full and half resolution (:func:`tower_training.evaluate_v2.val_selection_fn`);
 4. only then measure the test sets once (:func:`tower_training.evaluate_v2.evaluate_crops_v2`),
    export ``tower.onnx`` + ``tower.json`` (splits, captions, every figure) and check that
    onnxruntime agrees with torch.
@@ -26,16 +30,45 @@ from pathlib import Path
 
 import numpy as np
 
-from tower_training.data import SOURCES
-from tower_training.world_v2 import DataConfigV2, render_crop_data_v2, split_summary, train_caption_bank
+from tower_training.data import SOURCES, CropData
+from tower_training.world_v2 import (
+    ROOM_TEST, DataConfigV2, RoomDataConfig, render_crop_data_v2, render_room_crop_data, split_summary, train_caption_bank,
+)
 
-__all__ = ["CAPTION_WEIGHTS", "main"]
+__all__ = ["CAPTION_WEIGHTS", "room_test_metrics", "main"]
 
 logger = logging.getLogger(__name__)
 
 CAPTION_WEIGHTS = {"name": 2.0, "synonym": 1.0, "parent": 0.5, "colour": 1.0, "material": 1.0, "function": 1.0,
                    "background": 1.0, "scene": 1.0}
 """Weight of each caption kind as a positive in the loss (a name counts twice, a broad parent half)."""
+
+
+def room_test_metrics(embed_fn, text_encoder, room_test: CropData, split) -> dict:
+    """The test metrics of :func:`~tower_training.evaluate_v2.evaluate_crops_v2` on the held-out
+    apartment views (:data:`~tower_training.world_v2.ROOM_TEST`), keys prefixed ``room_test/``;
+    the background figure is left out (its candidate is the table's background phrase)."""
+    from tower_training.evaluate_v2 import evaluate_crops_v2
+
+    m = evaluate_crops_v2(embed_fn, text_encoder, room_test, split, {"val": [], "test": ROOM_TEST.scene_seeds(split)})
+    return {f"room_test/{k}": v for k, v in m.items() if not k.startswith(("val_", "background"))}
+
+
+def _evaluate_only(tower_dir: Path, data: CropData, room_test: CropData, split, data_cfg: DataConfigV2) -> int:
+    """``--evaluate``: every figure of an exported tower, printed as JSON (nothing written)."""
+    import json
+
+    from conceptfusion.perception.image_tower import EmbeddedEncoder
+    from conceptfusion.perception.text_tower import MiniLMTextEncoder
+    from tower_training.evaluate_v2 import evaluate_crops_v2
+
+    text = MiniLMTextEncoder()
+    enc = EmbeddedEncoder(tower_dir, text)
+    embed = lambda images: np.asarray(enc.encode_image(list(images)), np.float32) if len(images) else np.zeros((0, 384), np.float32)  # noqa: E731
+    metrics = evaluate_crops_v2(embed, text, data, split, {"val": data_cfg.seeds("val", split), "test": data_cfg.seeds("test", split)})
+    metrics.update(room_test_metrics(embed, text, room_test, split))
+    print(json.dumps({"tower_dir": str(tower_dir), "metrics": metrics}, indent=1, sort_keys=True))
+    return 0
 
 
 def _parser() -> argparse.ArgumentParser:
@@ -49,6 +82,12 @@ def _parser() -> argparse.ArgumentParser:
     p.add_argument("--val-scenes", type=int, default=d.val_scenes)
     p.add_argument("--test-scenes", type=int, default=d.test_scenes)
     p.add_argument("--views-per-scene", type=int, default=d.views_per_scene)
+    r = RoomDataConfig()
+    p.add_argument("--room-scenes", type=int, default=r.scenes,
+                   help=f"training apartments, views from a robot base's height (default: {r.scenes}; 0: none)")
+    p.add_argument("--room-views", type=int, default=r.views_per_scene, help=f"views per apartment (default: {r.views_per_scene})")
+    p.add_argument("--low-res-p", type=float, default=0.5,
+                   help="share of training crops first shrunk 1-4x, as in 160x120 frames (default: 0.5; 0: the first v2 recipe)")
     p.add_argument("--steps", type=int, default=3000, help="optimiser steps (default: 3000)")
     p.add_argument("--batch-size", type=int, default=96, help="crops per step (default: 96)")
     p.add_argument("--lr", type=float, default=5e-4, help="peak learning rate (default: 5e-4)")
@@ -56,6 +95,9 @@ def _parser() -> argparse.ArgumentParser:
     p.add_argument("--seed", type=int, default=0, help="seeds data and training")
     p.add_argument("--threads", type=int, default=1,
                    help="torch CPU threads (default: 1; on a loaded 2-core machine 2 threads ran slower)")
+    p.add_argument("--evaluate", default=None, metavar="TOWER_DIR",
+                   help="train nothing: measure an exported tower (its tower.onnx) on the validation and test sets "
+                        "and print the figures as JSON")
     p.add_argument("--init", default=None, metavar="TOWER_DIR",
                    help="start from the weights of an exported tower (its tower.onnx; e.g. the v1 tower) "
                         "with frozen folded batch norms, instead of a random initialisation")
@@ -80,15 +122,26 @@ def main(argv: list[str] | None = None) -> int:
     data_cfg = DataConfigV2(train_scenes=args.train_scenes, val_scenes=args.val_scenes, test_scenes=args.test_scenes,
                             views_per_scene=args.views_per_scene, seed=args.seed)
     tower_cfg = TowerConfig(stem_stride=2)  # the shipped architecture
-    train_cfg = replace(TrainConfig(), steps=args.steps, batch_size=args.batch_size, lr=args.lr, seed=args.seed, tower=tower_cfg)
+    if not 0.0 <= args.low_res_p <= 1.0:
+        raise SystemExit(f"--low-res-p: expected a probability in [0, 1], got {args.low_res_p}")
+    train_cfg = replace(TrainConfig(), steps=args.steps, batch_size=args.batch_size, lr=args.lr, seed=args.seed, tower=tower_cfg,
+                        low_res_p=args.low_res_p)
+    room_cfg = replace(RoomDataConfig(), scenes=args.room_scenes, views_per_scene=args.room_views, seed=args.seed)
+    cache = Path(args.cache_dir) if args.cache_dir else None
     t0 = time.perf_counter()
-    data = render_crop_data_v2(data_cfg, Path(args.cache_dir) if args.cache_dir else None)
+    tables = render_crop_data_v2(data_cfg, cache)
+    parts = [tables] + ([render_room_crop_data(room_cfg, cache)] if room_cfg.scenes > 0 else [])
+    data = CropData.concat(parts)
+    room_test = render_room_crop_data(ROOM_TEST, cache)
     t_data = time.perf_counter() - t0
 
+    if args.evaluate is not None:
+        return _evaluate_only(Path(args.evaluate), data, room_test, split, data_cfg)
     bank = train_caption_bank(split)
     cls_index = {n: i for i, n in enumerate(bank.class_names)}
     remap = np.array([cls_index.get(n, -1) for n in data.class_names], np.int64)
-    train_seeds = data_cfg.seeds("train", split)
+    room_seeds = room_cfg.scene_seeds(split) if room_cfg.scenes > 0 else []
+    train_seeds = data_cfg.seeds("train", split) + room_seeds
     train_mask = np.isin(data.seeds, train_seeds) & (remap[data.labels] >= 0)
     leaked = {data.class_names[l] for l in data.labels[np.isin(data.seeds, train_seeds)]} - set(bank.class_names)
     if leaked:  # never: train views hold TRAIN instances only
@@ -101,7 +154,7 @@ def main(argv: list[str] | None = None) -> int:
     captions = np.asarray(text.encode_text(list(bank.texts)), np.float32)
     weights = np.array([CAPTION_WEIGHTS[k] for k in bank.kinds], np.float32)
     val_seeds = data_cfg.seeds("val", split)
-    select = val_selection_fn(text, data, split, val_seeds)
+    select = val_selection_fn(text, data, split, val_seeds, half_res_too=True)
     t1 = time.perf_counter()
     model, history = train_tower_multicaption(train, captions, bank.positives, train_cfg, caption_weights_t=weights,
                                               select_fn=select, select_every=args.select_every, log_every=50,
@@ -111,8 +164,9 @@ def main(argv: list[str] | None = None) -> int:
           f"{history['best_val']:.3f} at step {history['best_step']}", flush=True)
 
     # the test sets are measured once, after model selection
-    metrics = evaluate_crops_v2(embed_fn(model, tower_cfg.input_size), text, data, split,
-                                {"val": val_seeds, "test": data_cfg.seeds("test", split)})
+    embed = embed_fn(model, tower_cfg.input_size)
+    metrics = evaluate_crops_v2(embed, text, data, split, {"val": val_seeds, "test": data_cfg.seeds("test", split)})
+    metrics.update(room_test_metrics(embed, text, room_test, split))
     for k, v in metrics.items():
         extra = f" top-5 {v['top5']:.3f}" if "top5" in v else ""
         print(f"{k:<48} top-1 {v['top1']:.3f}{extra}  (n={v['n']})")
@@ -123,11 +177,14 @@ def main(argv: list[str] | None = None) -> int:
         "parameters": int(sum(p.numel() for p in model.parameters())),
         "train_config": {k: v for k, v in asdict(train_cfg).items() if k != "tower"},
         "data_config": asdict(data_cfg),
+        "room_data_config": asdict(room_cfg),
+        "room_test_config": asdict(ROOM_TEST),
         "splits": split_summary(split),
         "scene_seeds_used": {w: [data_cfg.seeds(w, split)[0], data_cfg.seeds(w, split)[-1] + 1] for w in ("train", "val", "test")},
         "train_crops": int(train_mask.sum()),
         "train_crops_by_source": counts,
         "train_views": int(len(np.unique(data.views[np.isin(data.seeds, train_seeds)]))),
+        "train_room_views": int(len(np.unique(data.views[np.isin(data.seeds, room_seeds)]))),
         "train_classes": len(bank.class_names),
         "captions": {"weights": CAPTION_WEIGHTS, "count": len(bank.texts),
                      "by_kind": {k: int(sum(1 for x in bank.kinds if x == k)) for k in CAPTION_WEIGHTS}},

@@ -23,7 +23,7 @@ import numpy as np
 from conceptfusion.perception.image_tower import TowerConfig, build_tower, preprocess
 
 __all__ = [
-    "CropSet", "TrainConfig", "class_targets", "train_tower", "retrieval_accuracy", "augment", "multicaption_loss",
+    "CropSet", "TrainConfig", "class_targets", "train_tower", "retrieval_accuracy", "augment", "shrink", "multicaption_loss",
     "train_tower_multicaption", "torch_embed_fn",
     "load_tower_weights_from_onnx", "export_checked",
 ]
@@ -68,6 +68,12 @@ class TrainConfig:
     """Seeds torch and the augmentation generator."""
     tower: TowerConfig = field(default_factory=TowerConfig)
     """Architecture."""
+    low_res_p: float = 0.0
+    """Probability that a training crop is first shrunk by a factor drawn from ``low_res_scale``
+    (area interpolation), as an object looks in a 160x120 frame or from a far camera; 0 draws
+    nothing from the generator (the v1 recipe)."""
+    low_res_scale: tuple[float, float] = (1.0, 4.0)
+    """Range of that shrink factor."""
 
 
 def class_targets(text_encoder, class_phrases: Sequence[Sequence[str]]) -> np.ndarray:
@@ -88,12 +94,29 @@ def class_targets(text_encoder, class_phrases: Sequence[Sequence[str]]) -> np.nd
     return np.asarray(out, np.float32)
 
 
-def augment(image: np.ndarray, rng: np.random.Generator) -> np.ndarray:
-    """One random view of a crop (see the module docstring).
+def shrink(image: np.ndarray, factor: float) -> np.ndarray:
+    """``image`` shrunk by ``factor`` >= 1 on both sides (area interpolation, at least 2x2).
+
+    Shape:
+        (h, w, 3) uint8 -> (max(2, h / factor), max(2, w / factor), 3) uint8.
+    """
+    import cv2
+
+    h, w = image.shape[:2]
+    size = (max(2, int(round(w / factor))), max(2, int(round(h / factor))))
+    return image if size == (w, h) else cv2.resize(np.ascontiguousarray(image), size, interpolation=cv2.INTER_AREA)
+
+
+def augment(image: np.ndarray, rng: np.random.Generator, *, low_res_p: float = 0.0,
+            low_res_scale: tuple[float, float] = (1.0, 4.0)) -> np.ndarray:
+    """One random view of a crop (see the module docstring); with probability ``low_res_p``
+    the crop is first shrunk by a factor drawn from ``low_res_scale`` (:func:`shrink`).
 
     Shape:
         (h, w, 3) uint8 -> (h', w', 3) uint8.
     """
+    if low_res_p > 0 and rng.random() < low_res_p:
+        image = shrink(image, rng.uniform(*low_res_scale))
     h, w = image.shape[:2]
     scale = rng.uniform(0.65, 1.0)
     ch, cw = max(2, int(round(h * math.sqrt(scale) * rng.uniform(0.85, 1.15)))), max(2, int(round(w * math.sqrt(scale))))
@@ -144,7 +167,8 @@ def _batch(train: CropSet, labels: np.ndarray, rng: np.random.Generator, config)
     import torch
 
     idx = rng.integers(0, len(labels), config.batch_size)
-    x = torch.from_numpy(preprocess([augment(train.images[i], rng) for i in idx], config.tower.input_size))
+    x = torch.from_numpy(preprocess([augment(train.images[i], rng, low_res_p=config.low_res_p, low_res_scale=config.low_res_scale)
+                                     for i in idx], config.tower.input_size))
     return x, torch.from_numpy(labels[idx])
 
 

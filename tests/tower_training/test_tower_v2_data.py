@@ -197,3 +197,10 @@ def test_low_res_augmentation_shrinks_and_is_off_by_default():
     assert np.array_equal(augment(img, r1), augment(img, r2, low_res_p=0.0))
     small = [augment(img, np.random.default_rng(s), low_res_p=1.0, low_res_scale=(3.0, 3.0)).shape[0] for s in range(5)]
     assert max(small) <= 15  # 40 / 3, then the random crop can only cut
+
+
+def test_half_res_halves_every_crop():
+    from tower_training.evaluate_v2 import half_res
+
+    crops = [np.zeros((40, 30, 3), np.uint8), np.zeros((3, 5, 3), np.uint8)]
+    assert [c.shape for c in half_res(crops)] == [(20, 15, 3), (2, 2, 3)]
