@@ -153,7 +153,7 @@ def test_oracle_solves_v2_episodes_on_mujoco_and_the_suite_runs_them():
     from harness.runner.tasks import EpisodeJob, run_episode
 
     suite = get_suite("rearrange-v2")
-    assert suite.episodes_file == V2 and suite.task == "tabletop_rearrange" and "rearrange-v2" not in DEFAULT_SUITES
+    assert suite.episodes_file == V2 and suite.task == "tabletop_rearrange" and "rearrange-v2" in DEFAULT_SUITES
     eps = load_episodes(V2)
     rec = run_episode(EpisodeJob("t", "rearrange-v2", "tabletop_rearrange", "oracle-pusher", {}, eps.episodes[0], 0, {"width": 32, "height": 24}))
     assert rec["status"] == "ok", rec.get("error")

@@ -204,3 +204,27 @@ def test_half_res_halves_every_crop():
 
     crops = [np.zeros((40, 30, 3), np.uint8), np.zeros((3, 5, 3), np.uint8)]
     assert [c.shape for c in half_res(crops)] == [(20, 15, 3), (2, 2, 3)]
+
+
+def test_room_crops_carry_the_room_background_and_scene_labels():
+    from types import SimpleNamespace
+
+    from conceptfusion.frames import RGBDFrame
+    from tower_training.data import ROOM_BACKGROUND_CLASS, ROOM_SCENE_CLASS, ObjectClass, build_crop_data
+
+    h, w = 40, 60
+    seg = -np.ones((h, w), np.int32)
+    seg[5:15, 5:15] = 0  # one object
+    frame = RGBDFrame(rgb=np.full((h, w, 3), 128, np.uint8), depth=np.ones((h, w), np.float32),
+                      K=np.array([[50.0, 0, w / 2], [0, 50.0, h / 2], [0, 0, 1]]), cam_to_world=np.eye(4), segmentation=seg)
+    wall = np.zeros((1, h, w), bool)
+    wall[0, 20:38, 20:58] = True  # a mask on no object
+    view = SimpleNamespace(frame=frame, scene_seed=140_000, object_names=("mug-001",))
+    proposer = SimpleNamespace(propose=lambda rgb, depth, K: np.concatenate([seg[None] == 0, wall]))
+    classes = [ObjectClass("mug-001", ("a mug",)), ROOM_BACKGROUND_CLASS, ROOM_SCENE_CLASS, BACKGROUND_CLASS, SCENE_CLASS]
+    data = build_crop_data([view], classes, np.random.default_rng(0), proposer=proposer,
+                           background_class=ROOM_BACKGROUND_CLASS, scene_class=ROOM_SCENE_CLASS)
+    names = np.array(data.class_names)[data.labels]
+    assert names[data.sources == SOURCES.index("background")].tolist() == [ROOM_BACKGROUND_CLASS.name]
+    assert names[data.sources == SOURCES.index("frame")].tolist() == [ROOM_SCENE_CLASS.name]
+    assert set(names[data.sources < 2]) == {"mug-001"}
