@@ -18,7 +18,7 @@ from __future__ import annotations
 import math
 from contextlib import closing
 from dataclasses import dataclass
-from typing import Iterator, Sequence
+from typing import Callable, Iterator, Sequence
 
 import numpy as np
 
@@ -30,7 +30,7 @@ from sim_envs.scenes.format import Scene, SceneObject, Table, scene_from_json
 from sim_envs.scenes.splits import Splits
 from tower_training.views import ViewConfig, random_poses
 
-__all__ = ["TABLE", "LibraryView", "arrange_table", "pool_for_seed_role", "random_library_views"]
+__all__ = ["TABLE", "LibraryView", "arrange_table", "labelled_views", "pool_for_seed_role", "random_library_views"]
 
 TABLE = Table((0.0, 0.0, 0.375), (1.2, 0.8, 0.05))
 """The table every arrangement stands on (wood, 1.2 x 0.8 m)."""
@@ -118,6 +118,32 @@ def arrange_table(seed: int, pool: Sequence[str], *, n_objects: tuple[int, int] 
     return scene_from_json(scene.to_json(), source=f"libtable-{int(seed)}")
 
 
+def labelled_views(
+    seeds: Sequence[int], make_scene: Callable[[int], Scene], make_poses: Callable, views_per_scene: int,
+    rng: np.random.Generator, config,
+) -> Iterator[LibraryView]:
+    """Render ``views_per_scene`` views of ``make_scene(seed)`` for each seed, labelled with
+    instance ids: the one loop behind the table and apartment views.
+
+    One MuJoCo model and one camera per scene, released before the next. ``make_poses(scene, ms,
+    views_per_scene, rng, config)`` yields the (eye, target) pairs lazily, so each view's
+    randomness is drawn from ``rng`` when the view is asked for; ``config`` has ``width``,
+    ``height`` and ``fovy_deg``.
+    """
+    if views_per_scene < 1:
+        raise ValueError(f"views_per_scene: expected at least 1, got {views_per_scene}")
+    if not isinstance(rng, np.random.Generator):
+        raise TypeError(f"rng: expected a numpy Generator, got {type(rng).__name__}")
+    for seed in seeds:
+        scene = make_scene(int(seed))
+        ms = build_mujoco(scene)
+        names = tuple(o.asset.split(":", 1)[1] for o in scene.objects)
+        poses = make_poses(scene, ms, views_per_scene, rng, config)
+        with closing(iter_views(ms, poses, config.width, config.height, fovy_deg=config.fovy_deg)) as frames:
+            for f in frames:
+                yield LibraryView(frame=f, scene_seed=int(seed), object_names=names)
+
+
 def random_library_views(
     seeds: Sequence[int], pool: Sequence[str], views_per_scene: int, rng: np.random.Generator,
     config: ViewConfig = ViewConfig(),
@@ -127,15 +153,4 @@ def random_library_views(
     Cameras and lights as :func:`tower_training.views.random_tabletop_views`; each view's
     randomness is drawn from ``rng`` when the view is asked for.
     """
-    if views_per_scene < 1:
-        raise ValueError(f"views_per_scene: expected at least 1, got {views_per_scene}")
-    if not isinstance(rng, np.random.Generator):
-        raise TypeError(f"rng: expected a numpy Generator, got {type(rng).__name__}")
-    for seed in seeds:
-        scene = arrange_table(int(seed), pool)
-        ms = build_mujoco(scene)
-        names = tuple(o.asset.split(":", 1)[1] for o in scene.objects)
-        poses = random_poses(scene, ms, views_per_scene, rng, config)
-        with closing(iter_views(ms, poses, config.width, config.height, fovy_deg=config.fovy_deg)) as frames:
-            for f in frames:
-                yield LibraryView(frame=f, scene_seed=int(seed), object_names=names)
+    return labelled_views(seeds, lambda seed: arrange_table(seed, pool), random_poses, views_per_scene, rng, config)

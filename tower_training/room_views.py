@@ -20,13 +20,13 @@ Randomness: a ``np.random.Generator`` passed in; the apartments follow from thei
 from __future__ import annotations
 
 import math
-from contextlib import closing
 from dataclasses import dataclass
 from typing import Iterator, Sequence
 
 import numpy as np
 
-from tower_training.library_views import LibraryView
+from tower_training.library_views import LibraryView, labelled_views
+from tower_training.views import check_view_config
 
 __all__ = ["RoomViewConfig", "room_poses", "random_room_views"]
 
@@ -53,12 +53,7 @@ class RoomViewConfig:
     """Common factor on the lights' diffuse colour, per view (range)."""
 
     def __post_init__(self) -> None:
-        if self.width < 16 or self.height < 16:
-            raise ValueError(f"width, height: expected at least 16 pixels, got {self.width}x{self.height}")
-        for name in ("distance_m", "eye_height_m", "light_gain"):
-            lo, hi = getattr(self, name)
-            if not 0 < lo <= hi:
-                raise ValueError(f"{name}: expected a range 0 < lo <= hi, got {(lo, hi)}")
+        check_view_config(self, ("distance_m", "eye_height_m", "light_gain"))
         if not 0 < self.fovy_deg < 180:
             raise ValueError(f"fovy_deg: expected a value in (0, 180), got {self.fovy_deg}")
         if self.target_jitter_m < 0 or self.robot_radius_m < 0:
@@ -124,24 +119,8 @@ def room_poses(scene, ms, views: int, rng: np.random.Generator, config: RoomView
 
 def random_room_views(seeds: Sequence[int], views_per_scene: int, rng: np.random.Generator,
                       config: RoomViewConfig = RoomViewConfig()) -> Iterator[LibraryView]:
-    """Render ``views_per_scene`` random views of ``generate_household_v2(seed)`` for each seed.
-
-    One MuJoCo model and one camera per apartment, released before the next; each view's
-    randomness is drawn from ``rng`` when the view is asked for.
-    """
-    from sim_envs.mujoco.scan import iter_views
-    from sim_envs.mujoco.scene import build_mujoco
+    """Render ``views_per_scene`` random views of ``generate_household_v2(seed)`` for each seed
+    (:func:`room_poses`); each view's randomness is drawn from ``rng`` when the view is asked for."""
     from sim_envs.scenes.gen_household_v2 import generate_household_v2
 
-    if views_per_scene < 1:
-        raise ValueError(f"views_per_scene: expected at least 1, got {views_per_scene}")
-    if not isinstance(rng, np.random.Generator):
-        raise TypeError(f"rng: expected a numpy Generator, got {type(rng).__name__}")
-    for seed in seeds:
-        scene = generate_household_v2(int(seed))
-        ms = build_mujoco(scene)
-        names = tuple(o.asset.split(":", 1)[1] for o in scene.objects)
-        poses = room_poses(scene, ms, views_per_scene, rng, config)
-        with closing(iter_views(ms, poses, config.width, config.height, fovy_deg=config.fovy_deg)) as frames:
-            for f in frames:
-                yield LibraryView(frame=f, scene_seed=int(seed), object_names=names)
+    return labelled_views(seeds, generate_household_v2, room_poses, views_per_scene, rng, config)

@@ -24,7 +24,18 @@ from sim_envs.mujoco.scan import iter_views
 from sim_envs.mujoco.scene import build_mujoco
 from sim_envs.scenes.gen_tabletop import generate_tabletop
 
-__all__ = ["ViewConfig", "TabletopView", "random_poses", "random_tabletop_views"]
+__all__ = ["ViewConfig", "check_view_config", "TabletopView", "random_poses", "random_tabletop_views"]
+
+
+def check_view_config(config, ranges: Sequence[str]) -> None:
+    """``ValueError`` unless ``config.width`` and ``config.height`` are at least 16 pixels and each
+    field named in ``ranges`` is a range ``0 < lo <= hi``."""
+    if config.width < 16 or config.height < 16:
+        raise ValueError(f"width, height: expected at least 16 pixels, got {config.width}x{config.height}")
+    for name in ranges:
+        lo, hi = getattr(config, name)
+        if not 0 < lo <= hi:
+            raise ValueError(f"{name}: expected a range 0 < lo <= hi, got {(lo, hi)}")
 
 
 @dataclass(frozen=True)
@@ -47,12 +58,7 @@ class ViewConfig:
     """Common factor on the lights' diffuse colour, per view (range)."""
 
     def __post_init__(self) -> None:
-        if self.width < 16 or self.height < 16:
-            raise ValueError(f"width, height: expected at least 16 pixels, got {self.width}x{self.height}")
-        for name in ("distance_m", "height_m", "light_gain"):
-            lo, hi = getattr(self, name)
-            if not 0 < lo <= hi:
-                raise ValueError(f"{name}: expected a range 0 < lo <= hi, got {(lo, hi)}")
+        check_view_config(self, ("distance_m", "height_m", "light_gain"))
 
 
 @dataclass(frozen=True)

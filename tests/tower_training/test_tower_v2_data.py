@@ -228,3 +228,14 @@ def test_room_crops_carry_the_room_background_and_scene_labels():
     assert names[data.sources == SOURCES.index("background")].tolist() == [ROOM_BACKGROUND_CLASS.name]
     assert names[data.sources == SOURCES.index("frame")].tolist() == [ROOM_SCENE_CLASS.name]
     assert set(names[data.sources < 2]) == {"mug-001"}
+
+
+def test_room_view_config_refuses_bad_ranges():
+    from tower_training.room_views import RoomViewConfig
+
+    with pytest.raises(ValueError, match="eye_height_m: expected a range"):
+        RoomViewConfig(eye_height_m=(1.5, 1.0))
+    with pytest.raises(ValueError, match="at least 16 pixels"):
+        RoomViewConfig(width=8)
+    with pytest.raises(ValueError, match="fovy_deg"):
+        RoomViewConfig(fovy_deg=180.0)
