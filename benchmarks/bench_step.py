@@ -4,6 +4,7 @@ planning, control, for `map-navigator` (object search) and `map-pusher` (rearran
     python benchmarks/bench_step.py                       # 2 search + 3 rearrangement episodes, embedded
     python benchmarks/bench_step.py --encoder oracle --search 1 --rearrange 2
     python benchmarks/bench_step.py --rearrange 0 --search-option keyframe_move=0.3 --search-option keyframe_turn_deg=20
+    python benchmarks/bench_step.py --world v2            # search-v2 and rearrange-v2 episodes, embedded-v2
 
 Each component is timed exclusively (a call inside another timed call counts for the inner one
 only) by wrapping the functions the agents and environments call:
@@ -105,19 +106,24 @@ def _patches(timer: ExclusiveTimer, agent) -> list:
     return out
 
 
-def run(task: str, agent_name: str, encoder: str, episodes: int, options: dict | None = None) -> dict:
-    """Roll ``episodes`` episodes of the shipped v1 suite of ``task`` with a timed agent
-    (``options``: extra agent options, e.g. ``{"keyframe_move": 0.3}``)."""
+EPISODE_FILES = {("search", "v1"): ("household", "episodes-v1.jsonl"), ("rearrange", "v1"): ("tabletop", "episodes-v1.jsonl"),
+                 ("search", "v2"): ("household-v2", "episodes-v2.jsonl"), ("rearrange", "v2"): ("tabletop-v2", "episodes-v2.jsonl")}
+"""(task, world) -> the shipped episode file (folder under ``scenes/``, file name)."""
+
+
+def run(task: str, agent_name: str, encoder: str, episodes: int, options: dict | None = None, world: str = "v1") -> dict:
+    """Roll the first ``episodes`` episodes of the shipped ``world`` suite of ``task`` with a timed
+    agent (``options``: extra agent options, e.g. ``{"keyframe_move": 0.3}``)."""
     from agents.registry import make_agent
     from sim_envs.envs.object_search import ObjectSearchEnv
     from sim_envs.envs.tabletop_rearrange import TabletopRearrangeEnv
     from sim_envs.scenes.episodes import SCENES_ROOT, load_episodes
 
+    folder, name = EPISODE_FILES[(task, world)]
+    eps = load_episodes(SCENES_ROOT / folder / name).episodes[:episodes]
     if task == "search":
-        eps = load_episodes(SCENES_ROOT / "household" / "episodes-v1.jsonl").episodes[:episodes]
         env = ObjectSearchEnv(width=160, height=120)
     else:
-        eps = load_episodes(SCENES_ROOT / "tabletop" / "episodes-v1.jsonl").episodes[:episodes]
         env = TabletopRearrangeEnv(width=160, height=120, scan_frames=8)
     agent = make_agent(agent_name, encoder=encoder, **(options or {}))
     timer = ExclusiveTimer()
@@ -142,7 +148,7 @@ def run(task: str, agent_name: str, encoder: str, episodes: int, options: dict |
             successes += bool(info.get("success"))
     env.close()
     total = sum(walls)
-    return {"task": task, "agent": agent_name, "options": dict(options or {}), "encoder": encoder, "episodes": len(eps), "steps": steps,
+    return {"task": f"{task} {world}", "agent": agent_name, "options": dict(options or {}), "encoder": encoder, "episodes": len(eps), "steps": steps,
             "successes": successes, "wall_s": total, "cpu_s": sum(timer.cpu.values()),
             "per_component_s": {c: timer.total.get(c, 0.0) for c in COMPONENTS},
             "per_component_cpu_s": {c: timer.cpu.get(c, 0.0) for c in COMPONENTS}}
@@ -163,7 +169,9 @@ def report(r: dict) -> None:
 
 def main(argv: list[str] | None = None) -> int:
     parser = argparse.ArgumentParser(description=__doc__.split("\n\n")[0])
-    parser.add_argument("--encoder", default="embedded")
+    parser.add_argument("--world", choices=("v1", "v2"), default="v1",
+                        help="v1: the shipped v1 suites (default); v2: search-v2 and rearrange-v2 episodes")
+    parser.add_argument("--encoder", default=None, help="perception (default: embedded for v1, embedded-v2 for v2)")
     parser.add_argument("--search", type=int, default=2, help="search episodes (map-navigator)")
     parser.add_argument("--rearrange", type=int, default=3, help="rearrangement episodes (map-pusher)")
     parser.add_argument("--search-option", action="append", default=[], metavar="KEY=VALUE",
@@ -177,10 +185,11 @@ def main(argv: list[str] | None = None) -> int:
         options[key.strip()] = value.strip()
     load = os.getloadavg()[0] if hasattr(os, "getloadavg") else float("nan")
     print(f"load average at start: {load:.2f} on {os.cpu_count()} cores")
+    encoder = args.encoder or {"v1": "embedded", "v2": "embedded-v2"}[args.world]
     if args.search:
-        report(run("search", "map-navigator", args.encoder, args.search, options))
+        report(run("search", "map-navigator", encoder, args.search, options, args.world))
     if args.rearrange:
-        report(run("rearrange", "map-pusher", args.encoder, args.rearrange))
+        report(run("rearrange", "map-pusher", encoder, args.rearrange, world=args.world))
     return 0
 
 
