@@ -62,14 +62,11 @@ class RoomViewConfig:
 
 def _free_cells(scene, radius: float) -> np.ndarray:
     """World xy (n, 2) of the floor cells where the robot's disc is clear."""
-    from scipy import ndimage
-
     from sim_envs.scenes.floorplan import occupancy_grid
 
     occ = occupancy_grid(scene, cell=0.05)
-    clearance = ndimage.distance_transform_edt(~occ.blocked_hw) * occ.cell
     x, y = occ.centres()
-    free = clearance > radius
+    free = occ.clearance() > radius
     return np.stack([x[free], y[free]], axis=1)
 
 

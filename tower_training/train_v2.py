@@ -35,7 +35,7 @@ from tower_training.world_v2 import (
     ROOM_TEST, DataConfigV2, RoomDataConfig, render_crop_data_v2, render_room_crop_data, split_summary, train_caption_bank,
 )
 
-__all__ = ["CAPTION_WEIGHTS", "room_test_metrics", "main"]
+__all__ = ["CAPTION_WEIGHTS", "tower_metrics", "main"]
 
 logger = logging.getLogger(__name__)
 
@@ -44,14 +44,18 @@ CAPTION_WEIGHTS = {"name": 2.0, "synonym": 1.0, "parent": 0.5, "colour": 1.0, "m
 """Weight of each caption kind as a positive in the loss (a name counts twice, a broad parent half)."""
 
 
-def room_test_metrics(embed_fn, text_encoder, room_test: CropData, split) -> dict:
-    """The test metrics of :func:`~tower_training.evaluate_v2.evaluate_crops_v2` on the held-out
-    apartment views (:data:`~tower_training.world_v2.ROOM_TEST`), keys prefixed ``room_test/``;
-    the background figure is left out (its candidate is the table's background phrase)."""
+def tower_metrics(embed_fn, text_encoder, data: CropData, room_test: CropData, split, data_cfg: DataConfigV2) -> dict:
+    """Every figure of the model card: :func:`~tower_training.evaluate_v2.evaluate_crops_v2` on
+    the table views (validation and test sets of ``data_cfg``), then on the held-out apartment
+    views (:data:`~tower_training.world_v2.ROOM_TEST`) with keys prefixed ``room_test/`` (its
+    background figure left out: the candidate is the table's background phrase)."""
     from tower_training.evaluate_v2 import evaluate_crops_v2
 
-    m = evaluate_crops_v2(embed_fn, text_encoder, room_test, split, {"val": [], "test": ROOM_TEST.scene_seeds(split)})
-    return {f"room_test/{k}": v for k, v in m.items() if not k.startswith(("val_", "background"))}
+    out = evaluate_crops_v2(embed_fn, text_encoder, data, split, {"val": data_cfg.seeds("val", split),
+                                                                  "test": data_cfg.seeds("test", split)})
+    rooms = evaluate_crops_v2(embed_fn, text_encoder, room_test, split, {"val": [], "test": ROOM_TEST.scene_seeds(split)})
+    out.update({f"room_test/{k}": v for k, v in rooms.items() if not k.startswith(("val_", "background"))})
+    return out
 
 
 def _evaluate_only(tower_dir: Path, data: CropData, room_test: CropData, split, data_cfg: DataConfigV2) -> int:
@@ -60,13 +64,10 @@ def _evaluate_only(tower_dir: Path, data: CropData, room_test: CropData, split, 
 
     from conceptfusion.perception.image_tower import EmbeddedEncoder
     from conceptfusion.perception.text_tower import MiniLMTextEncoder
-    from tower_training.evaluate_v2 import evaluate_crops_v2
-
     text = MiniLMTextEncoder()
     enc = EmbeddedEncoder(tower_dir, text)
-    embed = lambda images: np.asarray(enc.encode_image(list(images)), np.float32) if len(images) else np.zeros((0, 384), np.float32)  # noqa: E731
-    metrics = evaluate_crops_v2(embed, text, data, split, {"val": data_cfg.seeds("val", split), "test": data_cfg.seeds("test", split)})
-    metrics.update(room_test_metrics(embed, text, room_test, split))
+    embed = lambda images: np.asarray(enc.encode_image(list(images)), np.float32) if len(images) else np.zeros((0, enc.dim), np.float32)  # noqa: E731
+    metrics = tower_metrics(embed, text, data, room_test, split, data_cfg)
     print(json.dumps({"tower_dir": str(tower_dir), "metrics": metrics}, indent=1, sort_keys=True))
     return 0
 
@@ -113,7 +114,7 @@ def main(argv: list[str] | None = None) -> int:
     from conceptfusion.perception.image_tower import TowerConfig
     from conceptfusion.perception.text_tower import MiniLMTextEncoder
     from sim_envs.scenes.splits import SplitError, splits
-    from tower_training.evaluate_v2 import evaluate_crops_v2, val_selection_fn
+    from tower_training.evaluate_v2 import val_selection_fn
     from tower_training.training import CropSet, TrainConfig, export_checked, torch_embed_fn as embed_fn, train_tower_multicaption
 
     torch.set_num_threads(max(1, args.threads))
@@ -164,9 +165,7 @@ def main(argv: list[str] | None = None) -> int:
           f"{history['best_val']:.3f} at step {history['best_step']}", flush=True)
 
     # the test sets are measured once, after model selection
-    embed = embed_fn(model, tower_cfg.input_size)
-    metrics = evaluate_crops_v2(embed, text, data, split, {"val": val_seeds, "test": data_cfg.seeds("test", split)})
-    metrics.update(room_test_metrics(embed, text, room_test, split))
+    metrics = tower_metrics(embed_fn(model, tower_cfg.input_size), text, data, room_test, split, data_cfg)
     for k, v in metrics.items():
         extra = f" top-5 {v['top5']:.3f}" if "top5" in v else ""
         print(f"{k:<48} top-1 {v['top1']:.3f}{extra}  (n={v['n']})")

@@ -145,11 +145,23 @@ def split_summary(split: Splits | None = None) -> dict:
     }
 
 
-def _cache_path(cache_dir: Path, config: DataConfigV2) -> Path:
+def _cached_crops(cache_dir: Path | None, stem: str, key: str, config, build) -> CropData:
+    """The crops of ``config``: loaded from ``cache_dir`` when an earlier build saved them there,
+    else ``build()``, saved (when ``cache_dir`` is given). The file is
+    ``<stem>_<hash>.npz``, the hash over ``{key: asdict(config)}`` and the catalogue's hash."""
+    if cache_dir is None:
+        return build()
     from sim_envs.assets.library import catalogue_hash
 
-    key_src = json.dumps({"config": asdict(config), "catalogue": catalogue_hash()}, sort_keys=True)
-    return cache_dir / f"tower_crops_v2_{hashlib.sha256(key_src.encode()).hexdigest()[:16]}.npz"
+    key_src = json.dumps({key: asdict(config), "catalogue": catalogue_hash()}, sort_keys=True)
+    path = Path(cache_dir) / f"{stem}_{hashlib.sha256(key_src.encode()).hexdigest()[:16]}.npz"
+    if path.is_file():
+        logger.info("crop data from cache %s", path)
+        return CropData.load(path)
+    data = build()
+    data.save(path)
+    logger.info("crop data cached at %s", path)
+    return data
 
 
 def render_crop_data_v2(config: DataConfigV2, cache_dir: Path | None = None, *, proposer=None) -> CropData:
@@ -161,29 +173,23 @@ def render_crop_data_v2(config: DataConfigV2, cache_dir: Path | None = None, *, 
     Args:
         proposer: mask proposer for proposer/background crops (default: ``make_proposer("rgbd")``).
     """
-    if cache_dir is not None:
-        path = _cache_path(Path(cache_dir), config)
-        if path.is_file():
-            logger.info("crop data from cache %s", path)
-            return CropData.load(path)
-    from conceptfusion.perception.masks.registry import make_proposer
-    from tower_training.data import build_crop_data
-    from tower_training.library_views import pool_for_seed_role, random_library_views
-    from tower_training.views import ViewConfig
+    def build() -> CropData:
+        from conceptfusion.perception.masks.registry import make_proposer
+        from tower_training.data import build_crop_data
+        from tower_training.library_views import pool_for_seed_role, random_library_views
+        from tower_training.views import ViewConfig
 
-    split = splits()
-    classes = library_classes() + [BACKGROUND_CLASS, SCENE_CLASS]
-    rng = np.random.default_rng(config.seed)
-    vc = ViewConfig(width=config.width, height=config.height)
-    views = chain.from_iterable(
-        random_library_views(config.seeds(which, split), pool_for_seed_role(split, role), config.views_per_scene, rng, vc)
-        for which, role in SETS.items())
-    data = build_crop_data(views, classes, rng, proposer=make_proposer("rgbd") if proposer is None else proposer,
-                           config=config.crops)
-    if cache_dir is not None:
-        data.save(path)
-        logger.info("crop data cached at %s", path)
-    return data
+        split = splits()
+        classes = library_classes() + [BACKGROUND_CLASS, SCENE_CLASS]
+        rng = np.random.default_rng(config.seed)
+        vc = ViewConfig(width=config.width, height=config.height)
+        views = chain.from_iterable(
+            random_library_views(config.seeds(which, split), pool_for_seed_role(split, role), config.views_per_scene, rng, vc)
+            for which, role in SETS.items())
+        return build_crop_data(views, classes, rng, proposer=make_proposer("rgbd") if proposer is None else proposer,
+                               config=config.crops)
+
+    return _cached_crops(cache_dir, "tower_crops_v2", "config", config, build)
 
 
 def render_room_crop_data(config: RoomDataConfig, cache_dir: Path | None = None, *, proposer=None) -> CropData:
@@ -193,28 +199,19 @@ def render_room_crop_data(config: RoomDataConfig, cache_dir: Path | None = None,
     :data:`~tower_training.data.ROOM_BACKGROUND_CLASS`, whole views
     :data:`~tower_training.data.ROOM_SCENE_CLASS`.
     """
-    if cache_dir is not None:
-        from sim_envs.assets.library import catalogue_hash
+    def build() -> CropData:
+        from conceptfusion.perception.masks.registry import make_proposer
+        from tower_training.data import build_crop_data
+        from tower_training.room_views import RoomViewConfig, random_room_views
 
-        key_src = json.dumps({"rooms": asdict(config), "catalogue": catalogue_hash()}, sort_keys=True)
-        path = Path(cache_dir) / f"tower_crops_rooms_{hashlib.sha256(key_src.encode()).hexdigest()[:16]}.npz"
-        if path.is_file():
-            logger.info("room crop data from cache %s", path)
-            return CropData.load(path)
-    from conceptfusion.perception.masks.registry import make_proposer
-    from tower_training.data import build_crop_data
-    from tower_training.room_views import RoomViewConfig, random_room_views
+        rng = np.random.default_rng(config.seed)
+        views = random_room_views(config.scene_seeds(splits()), config.views_per_scene, rng,
+                                  RoomViewConfig(width=config.width, height=config.height))
+        return build_crop_data(views, library_classes() + list(SPECIAL_CLASSES), rng,
+                               proposer=make_proposer("rgbd") if proposer is None else proposer, config=config.crops,
+                               background_class=ROOM_BACKGROUND_CLASS, scene_class=ROOM_SCENE_CLASS)
 
-    rng = np.random.default_rng(config.seed)
-    views = random_room_views(config.scene_seeds(splits()), config.views_per_scene, rng,
-                              RoomViewConfig(width=config.width, height=config.height))
-    data = build_crop_data(views, library_classes() + list(SPECIAL_CLASSES), rng,
-                           proposer=make_proposer("rgbd") if proposer is None else proposer, config=config.crops,
-                           background_class=ROOM_BACKGROUND_CLASS, scene_class=ROOM_SCENE_CLASS)
-    if cache_dir is not None:
-        data.save(path)
-        logger.info("room crop data cached at %s", path)
-    return data
+    return _cached_crops(cache_dir, "tower_crops_rooms", "rooms", config, build)
 
 
 if __name__ == "__main__":  # render the default data into the default cache

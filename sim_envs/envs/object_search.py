@@ -15,7 +15,6 @@ from typing import Any
 import gymnasium as gym
 import numpy as np
 from gymnasium import spaces
-from scipy import ndimage
 
 from conceptfusion.errors import EnvStateError, SimError
 from conceptfusion.names import did_you_mean
@@ -164,8 +163,7 @@ class ObjectSearchEnv(EpisodeLifecycle, LastFrameRendering, gym.Env):
                 fovy_deg=self.fovy_deg, geom_object=self._sim.geom_object,
             )
             occ = occupancy_grid(scene, cell=0.05)
-            clearance = ndimage.distance_transform_edt(~occ.blocked_hw) * occ.cell
-            self._occ, self._free = occ, clearance > self.robot_radius
+            self._occ, self._free = occ, occ.clearance() > self.robot_radius
             self._scene_key = scene.id
         self.scene = scene
         self._object_phrases = [answer_phrases(o) for o in scene.objects]

@@ -26,6 +26,13 @@ class Occupancy:
     origin: np.ndarray
     cell: float
 
+    def clearance(self) -> np.ndarray:
+        """(H, W) float: metres from each cell to the nearest blocked cell (0 on blocked cells);
+        a disc of radius r centred on a cell is clear where this exceeds r."""
+        from scipy import ndimage
+
+        return ndimage.distance_transform_edt(~self.blocked_hw) * self.cell
+
     def centres(self) -> tuple[np.ndarray, np.ndarray]:
         """World x (H, W) and y (H, W) of every cell centre."""
         h, w = self.blocked_hw.shape
@@ -84,7 +91,7 @@ def reachable_rooms(scene, *, radius: float = 0.25, cell: float = 0.05, start_ro
     from scipy import ndimage
 
     occ = occupancy_grid(scene, cell=cell)
-    free = ndimage.distance_transform_edt(~occ.blocked_hw) * cell > radius
+    free = occ.clearance() > radius
     labels, n = ndimage.label(free)
     if n == 0:
         return set()

@@ -16,7 +16,6 @@ import math
 from pathlib import Path
 
 import numpy as np
-from scipy import ndimage
 
 from planners.geodesic import geodesic_to_goal
 from sim_envs.scenes.descriptions import describe
@@ -75,7 +74,7 @@ def generate_search_episodes(
             raise ValueError(f"{path}: expected a household scene with rooms")
         rel = path.resolve().relative_to(Path(scenes_root or SCENES_ROOT).resolve()).as_posix()
         occ = occupancy_grid(scene, cell=0.05)
-        clearance = ndimage.distance_transform_edt(~occ.blocked_hw) * occ.cell
+        clearance = occ.clearance()
         free = clearance > robot_radius
         starts = np.argwhere(clearance > robot_radius + 0.1)
         cx, cy = occ.centres()
