@@ -15,12 +15,13 @@ selections: ``region`` (the best region of :func:`conceptfusion.map.query.locate
 threshold 0.6 for text and image, 0.8 for clicks as in the paper) and ``thresh`` (every point
 whose relative score passes that threshold). Per modality: mIoU, detection accuracy at IoU >
 0.15 / 0.25 / 0.5, found rate. ``absent_fp_rate``: two names of objects from other shipped
-scenes are queried; a ``found=True`` is a false positive. Image queries need an image tower:
+tables of the same world are queried; a ``found=True`` is a false positive. Image queries need an image tower:
 with an oracle (``oracle``, ``oracle-open``) their metrics are ``None``. Objects with no map point are skipped (counted).
 """
 
 from __future__ import annotations
 
+import functools
 import math
 import time
 import zlib
@@ -30,7 +31,7 @@ import numpy as np
 
 from agents.builtin import make_mapper
 from conceptfusion.perception.featurizer import ORACLE_ENCODERS
-from harness.maps.scan import SceneScan, fuse_frames, load_shipped_scene, point_labels, scan_tabletop, shipped_scene_ids
+from harness.maps.scan import SceneScan, fuse_frames, load_shipped_scene, point_labels, scan_tabletop, scene_kind, shipped_scene_ids
 from sim_envs.mujoco.scan import render_views
 
 __all__ = ["run_query_scene", "locate_vector", "iou", "select_points", "MODALITIES", "IOU_LEVELS"]
@@ -106,9 +107,19 @@ def _image_query(encoder, views, label: int) -> np.ndarray | None:
     return np.asarray(encoder.encode_image([crop])[0], np.float32)
 
 
+@functools.lru_cache(maxsize=None)
+def _names_of_kind(kind: str) -> frozenset[str]:
+    return frozenset(o.name for sid in shipped_scene_ids(kind) for o in load_shipped_scene(sid).objects)
+
+
 def _absent_names(scene, seed: int, k: int = 2) -> list[str]:
+    """``k`` names of objects on other shipped tables of the scene's world (v1 or v2), none on this one."""
     present = {o.name for o in scene.objects}
-    pool = sorted({o.name for sid in shipped_scene_ids("tabletop") for o in load_shipped_scene(sid).objects} - present)
+    try:
+        kind = scene_kind(scene.id)
+    except ValueError:
+        kind = "tabletop"
+    pool = sorted(_names_of_kind(kind) - present)
     rng = np.random.default_rng([int(seed), zlib.crc32(scene.id.encode())])
     return [str(x) for x in rng.choice(pool, size=min(k, len(pool)), replace=False)]
 

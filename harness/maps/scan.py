@@ -24,11 +24,13 @@ from sim_envs.scenes.episodes import SCENES_ROOT
 from sim_envs.scenes.format import Scene, load_scene
 
 __all__ = [
-    "SCENE_KINDS", "SceneScan", "shipped_scene_ids", "load_shipped_scene", "scan_scene", "scan_tabletop",
+    "SCENE_KINDS", "SceneScan", "shipped_scene_ids", "scene_kind", "load_shipped_scene", "scan_scene", "scan_tabletop",
     "fuse_frames", "point_labels", "scene_label_phrases",
 ]
 
-SCENE_KINDS = ("tabletop", "household")
+SCENE_KINDS = ("tabletop", "household", "tabletop-v2", "household-v2")
+"""Kinds of shipped scene, each a folder of ``scenes/`` holding ``<kind>-<number>.json``: the v1
+world (primitives) and the v2 world (object library, evaluation seeds only)."""
 
 
 @dataclass
@@ -59,17 +61,25 @@ class SceneScan:
 
 
 def shipped_scene_ids(kind: str) -> list[str]:
-    """Ids of the shipped scenes of one kind (``"tabletop"`` or ``"household"``), sorted."""
+    """Ids of the shipped scenes of one kind (one of :data:`SCENE_KINDS`), sorted."""
     if kind not in SCENE_KINDS:
         raise ValueError(f"kind: expected one of {SCENE_KINDS}, got {kind!r}")
-    return sorted(p.stem for p in (SCENES_ROOT / kind).glob(f"{kind}-*.json"))
+    return sorted(p.stem for p in (SCENES_ROOT / kind).glob(f"{kind}-*.json") if p.stem[len(kind) + 1:].isdigit())
+
+
+def scene_kind(scene_id: str) -> str:
+    """The kind (:data:`SCENE_KINDS`) of a shipped scene id: ``"tabletop-0111"`` -> ``"tabletop"``,
+    ``"household-v2-300000"`` -> ``"household-v2"``; ``ValueError`` for anything else."""
+    kind, _, number = str(scene_id).rpartition("-")
+    if kind not in SCENE_KINDS or not number.isdigit():
+        raise ValueError(f"scene_id: expected '<kind>-<number>' with a kind of {', '.join(SCENE_KINDS)} "
+                         f"('tabletop-0111', 'household-v2-300000'), got {scene_id!r}")
+    return kind
 
 
 def load_shipped_scene(scene_id: str) -> Scene:
-    """A shipped scene by id (``"tabletop-0111"``, ``"household-0000"``)."""
-    kind = str(scene_id).split("-")[0]
-    if kind not in SCENE_KINDS:
-        raise ValueError(f"scene_id: expected 'tabletop-NNNN' or 'household-NNNN', got {scene_id!r}")
+    """A shipped scene by id (``"tabletop-0111"``, ``"household-0000"``, ``"tabletop-v2-300005"``)."""
+    kind = scene_kind(scene_id)
     path = SCENES_ROOT / kind / f"{scene_id}.json"
     if not path.exists():
         raise ValueError(f"scene_id: no shipped scene {scene_id!r} (shipped: {', '.join(shipped_scene_ids(kind)[:5])}, ...)")

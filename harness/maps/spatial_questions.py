@@ -21,7 +21,8 @@ sizes, on pairs where the answer is clear-cut:
   every sorted size of A plus 1 cm clearance is at least 2 cm below B's, false when one
   exceeds B's by at least 2 cm;
 * ``isContained``: true cases from ``inside`` (objects in bowls, in furniture), false cases
-  pair A with a bowl, a box or furniture of its room.
+  pair A with a receptacle (:data:`RECEPTACLES`: a bowl, a box, a basket...) or furniture of its
+  room.
 
 Each question is phrased by one template of its comparator (:mod:`harness.maps.spatial_templates`),
 the templates taken in a seeded order so a scene uses different ones.
@@ -37,7 +38,7 @@ from conceptfusion.spatial.comparators import COMPARATOR_NAMES
 from harness.maps.scan import SceneScan
 from harness.maps.spatial_templates import SpatialTemplate, load_templates
 
-__all__ = ["QUESTION_TYPES", "PER_SCENE", "askable", "generate_questions"]
+__all__ = ["QUESTION_TYPES", "PER_SCENE", "RECEPTACLES", "askable", "generate_questions"]
 
 QUESTION_TYPES = COMPARATOR_NAMES
 """A question's ``type``: the comparator it asks (the paper's eight)."""
@@ -50,6 +51,11 @@ _MIN_LATERAL = 0.1  # metres sideways between the two centres of a left/right qu
 _MIN_VOLUME_RATIO = 2.0
 _FIT_CLEARANCE = 0.01  # the comparator's default clearance
 _FIT_MARGIN = 0.02
+
+RECEPTACLES = ("bowl", "box", "basket", "crate", "bucket", "trash can")
+"""Object categories a false ``isContained`` question may name as the container: open-topped things
+other objects are put in (v1: bowls and boxes; the object library adds baskets, crates, buckets and
+trash cans)."""
 
 
 def askable(scan: SceneScan) -> dict[str, dict]:
@@ -149,7 +155,7 @@ def _cases(scan: SceneScan, ent: dict[str, dict], rng: np.random.Generator) -> d
 
     inside = {(a, b) for a, b in scan.graph["inside"]}
     true_in = sorted((a, b) for a, b in inside if a in ent and b in ent)
-    containers = [k for k in others if ent[k]["kind"] == "furniture" or ent[k].get("category") in ("bowl", "box")]
+    containers = [k for k in others if ent[k]["kind"] == "furniture" or ent[k].get("category") in RECEPTACLES]
     false_in = [(a, b) for a in objs for b in containers if a != b and (a, b) not in inside and ent[b]["room"] == ent[a]["room"]]
     out["isContained"] = _balanced(rng, true_in, false_in, PER_SCENE)
     return out

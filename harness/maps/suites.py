@@ -1,6 +1,9 @@
 """The map suites: ``query``, ``query-open``, ``ablation`` and ``spatial``, scored against
 simulator ground truth (see :mod:`harness.maps.query`, :mod:`harness.maps.query_open`,
 :mod:`harness.maps.ablation`, :mod:`harness.maps.spatial` for what each measures and how).
+``query``, ``ablation`` and ``spatial`` run on the v1 world's shipped scenes; ``query-v2``,
+``ablation-v2`` and ``spatial-v2`` are the same measurements on the v2 world's (object-library
+tables and apartments of evaluation seeds, :data:`WORLD_KINDS`); ``query-open`` is v2 only.
 
 A map suite is a :class:`MapSuite`: the ``task`` its records carry, the run options it reads,
 the :class:`MapCase` s it scores (``cases``) and how it scores one (``score``). One case = one
@@ -30,12 +33,13 @@ from harness.maps.scan import shipped_scene_ids
 from harness.maps.spatial import DEFAULT_PARSER, METHODS, run_spatial_scene
 from sim_envs.scenes.splits import splits
 
-__all__ = ["MapCase", "MapSuite", "MAP_SUITES", "get_map_suite", "scene_ids", "DEFAULT_SCENES", "ablation_encoder",
+__all__ = ["MapCase", "MapSuite", "MAP_SUITES", "get_map_suite", "scene_ids", "DEFAULT_SCENES", "WORLD_KINDS", "ablation_encoder",
            "heatmap_file"]
 
-DEFAULT_SCENES = {"tabletop": 6, "household": 4}
+DEFAULT_SCENES = {"tabletop": 6, "household": 4, "tabletop-v2": 12, "household-v2": 4}
 """How many shipped scenes of each kind a suite uses by default (the first ones, sorted, that the
-split file does not reserve)."""
+split file does not reserve). v2 tables vary more (4-12 objects of 100+ categories), so the v2
+suites take twice as many."""
 
 
 @dataclass(frozen=True)
@@ -77,19 +81,21 @@ def scene_ids(kind: str, limit: int | None) -> list[str]:
     return [s for s in shipped_scene_ids(kind) if not split.is_reserved_scene(s)][:n]
 
 
-def ablation_encoder(encoder: str) -> tuple[str, str]:
+def ablation_encoder(encoder: str, world: str = "v1") -> tuple[str, str]:
     """The encoder the ablation uses for a run's encoder, and why it differs (empty if not).
 
     The oracles (``oracle``, ``oracle-open``) have no image embeddings to mix, so they fall
-    back to ``"embedded"`` when the shipped tower loads, else to ``"color"``.
+    back to the shipped tower of the ``world`` (``"embedded"`` for v1, ``"embedded-v2"`` for v2)
+    when it loads, else to ``"color"``.
     """
     if encoder not in ORACLE_ENCODERS:
         return encoder, ""
+    tower = "embedded-v2" if world == "v2" else "embedded"
     try:
-        make_featurizer("embedded")  # loads the tower once per process
-        return "embedded", "the oracle has no image tower; the ablation uses 'embedded'"
+        make_featurizer(tower)  # loads the tower once per process
+        return tower, f"the oracle has no image tower; the ablation uses {tower!r}"
     except (FileNotFoundError, ImportError, OSError) as exc:
-        return "color", f"the oracle has no image tower and 'embedded' is not loadable ({exc}); the ablation uses 'color'"
+        return "color", f"the oracle has no image tower and {tower!r} is not loadable ({exc}); the ablation uses 'color'"
 
 
 def heatmap_file(out_dir: str | Path, case: MapCase, seed: int) -> Path:
@@ -101,22 +107,33 @@ def _size(options: dict) -> dict:
     return {"width": int(options.get("width", 160)), "height": int(options.get("height", 120))}
 
 
-def _query_cases(encoder: str, limit: int | None) -> list[MapCase]:
-    return [MapCase("conceptfusion", encoder, s) for s in scene_ids("tabletop", limit)]
+WORLD_KINDS = {"v1": ("tabletop", "household"), "v2": ("tabletop-v2", "household-v2")}
+"""Scene kinds (tables, apartments) of each world a map suite runs in."""
+
+
+def _query_cases(world: str):
+    def cases(encoder: str, limit: int | None) -> list[MapCase]:
+        return [MapCase("conceptfusion", encoder, s) for s in scene_ids(WORLD_KINDS[world][0], limit)]
+    return cases
 
 
 def _open_cases(encoder: str, limit: int | None) -> list[MapCase]:
     return [MapCase("conceptfusion", encoder, s) for s in open_scene_ids(limit)]
 
 
-def _ablation_cases(encoder: str, limit: int | None) -> list[MapCase]:
-    enc, note = ablation_encoder(encoder)
-    return [MapCase(v, enc, s, note) for s in scene_ids("tabletop", limit) for v in VARIANTS]
+def _ablation_cases(world: str):
+    def cases(encoder: str, limit: int | None) -> list[MapCase]:
+        enc, note = ablation_encoder(encoder, world)
+        return [MapCase(v, enc, s, note) for s in scene_ids(WORLD_KINDS[world][0], limit) for v in VARIANTS]
+    return cases
 
 
-def _spatial_cases(encoder: str, limit: int | None) -> list[MapCase]:
-    scenes = scene_ids("household", limit) + scene_ids("tabletop", limit)
-    return [MapCase(agent, encoder, s) for s in scenes for agent in METHODS.values()]
+def _spatial_cases(world: str):
+    def cases(encoder: str, limit: int | None) -> list[MapCase]:
+        tables, rooms = WORLD_KINDS[world]
+        scenes = scene_ids(rooms, limit) + scene_ids(tables, limit)
+        return [MapCase(agent, encoder, s) for s in scenes for agent in METHODS.values()]
+    return cases
 
 
 def _score_query(case: MapCase, options: dict, seed: int, out_dir: str | None) -> tuple[dict, dict, dict]:
@@ -152,10 +169,13 @@ def _score_spatial(case: MapCase, options: dict, seed: int, out_dir: str | None)
 MAP_SUITES: dict[str, MapSuite] = {
     s.name: s
     for s in (
-        MapSuite("query", "map_query", ("frames", "width", "height"), _query_cases, _score_query),
+        MapSuite("query", "map_query", ("frames", "width", "height"), _query_cases("v1"), _score_query),
+        MapSuite("query-v2", "map_query", ("frames", "width", "height"), _query_cases("v2"), _score_query),
         MapSuite("query-open", "map_query_open", ("frames", "width", "height"), _open_cases, _score_open),
-        MapSuite("ablation", "map_ablation", ("frames", "width", "height", "proposer"), _ablation_cases, _score_ablation),
-        MapSuite("spatial", "spatial_qa", ("frames", "width", "height", "parser"), _spatial_cases, _score_spatial),
+        MapSuite("ablation", "map_ablation", ("frames", "width", "height", "proposer"), _ablation_cases("v1"), _score_ablation),
+        MapSuite("ablation-v2", "map_ablation", ("frames", "width", "height", "proposer"), _ablation_cases("v2"), _score_ablation),
+        MapSuite("spatial", "spatial_qa", ("frames", "width", "height", "parser"), _spatial_cases("v1"), _score_spatial),
+        MapSuite("spatial-v2", "spatial_qa", ("frames", "width", "height", "parser"), _spatial_cases("v2"), _score_spatial),
     )
 }
 """Every map suite by name."""

@@ -60,7 +60,8 @@ class MapJob:
     @property
     def expected_s(self) -> float:
         """Rough length of the job in seconds (the backends start the longest jobs first)."""
-        return {"query": 2.0, "query-open": 10.0, "ablation": 0.5, "spatial": 1.0}.get(self.suite, 1.0)
+        return {"query": 2.0, "query-v2": 2.0, "query-open": 10.0, "ablation": 0.5, "ablation-v2": 0.5, "spatial": 1.0,
+                "spatial-v2": 1.0}.get(self.suite, 1.0)
 
     @property
     def case(self) -> MapCase:

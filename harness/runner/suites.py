@@ -155,6 +155,12 @@ SUITES: dict[str, Suite] = {
               default_encoder="embedded-v2"),
         Suite("ablation", "maps", "pixel-feature ablation: global only, local only, no uniqueness, full (mAcc, f-mIoU)"),
         Suite("spatial", "maps", "spatial questions from the scene graph: 3D map vs single RGB-D frame"),
+        Suite("query-v2", "maps", "text, image and click query localisation over fused v2 tabletop maps (object library; 3D mIoU, "
+              "detection accuracy)", default_encoder="embedded-v2"),
+        Suite("ablation-v2", "maps", "pixel-feature ablation on v2 tabletops: global only, local only, no uniqueness, full "
+              "(mAcc, f-mIoU)", default_encoder="embedded-v2"),
+        Suite("spatial-v2", "maps", "spatial questions from the scene graph of v2 apartments and tabletops: 3D map vs single "
+              "RGB-D frame", default_encoder="embedded-v2"),
         Suite(
             "regression-rearrange", "episodes", "pinned tabletop episodes with calibrated success floors, oracle perception (CI)",
             task="tabletop_rearrange", episodes_file=SCENES_ROOT / "tabletop" / "episodes-v1.jsonl",

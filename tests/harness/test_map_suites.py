@@ -118,3 +118,45 @@ def test_a_map_job_past_its_timeout_is_recorded_and_the_run_goes_on():
     (rec,) = run_jobs([slow], backend="process", workers=1)
     assert rec["status"] == "timeout" and "exceeded" in rec["error"] and record_key(rec) == record_key(job.key_record())
     assert rec["task"] == "map_query"
+
+
+def test_scene_kinds_of_both_worlds():
+    from harness.maps.scan import scene_kind, shipped_scene_ids
+
+    assert scene_kind("tabletop-0111") == "tabletop" and scene_kind("household-v2-300000") == "household-v2"
+    assert scene_kind("tabletop-v2-300005") == "tabletop-v2"
+    for bad in ("tabletop", "kitchen-0001", "tabletop-v3-1", "tabletop-v2-x"):
+        with pytest.raises(ValueError, match="expected '<kind>-<number>'"):
+            scene_kind(bad)
+    v1, v2 = shipped_scene_ids("tabletop"), shipped_scene_ids("tabletop-v2")
+    assert v1 and v2 and not set(v1) & set(v2) and all(s.startswith("tabletop-v2-") for s in v2)
+    assert load_shipped_scene(v2[0]).table is not None
+
+
+def test_v2_map_suites_take_the_v2_scenes_and_its_tower():
+    from harness.maps.suites import DEFAULT_SCENES, ablation_encoder, scene_ids
+
+    cfg = RunConfig(suites=("query-v2", "ablation-v2", "spatial-v2"), limit=2)
+    q = map_suite_jobs("query-v2", cfg, "r")
+    assert [j.scene_id for j in q] == scene_ids("tabletop-v2", 2) and {j.encoder for j in q} == {"embedded-v2"}
+    spatial = {j.scene_id for j in map_suite_jobs("spatial-v2", cfg, "r")}
+    assert spatial == set(scene_ids("household-v2", 2) + scene_ids("tabletop-v2", 2))
+    assert len(scene_ids("tabletop-v2", None)) == DEFAULT_SCENES["tabletop-v2"]
+    assert ablation_encoder("oracle-open", "v2")[0] == "embedded-v2" and ablation_encoder("oracle")[0] == "embedded"
+
+
+def test_v2_query_and_ablation_records_with_privileged_features():
+    scene = "tabletop-v2-300005"
+    opts = {"frames": 8, "width": 128, "height": 96}
+    (rec,) = run_map_job(_job("query-v2", "conceptfusion", "oracle", scene, **opts))
+    assert rec["status"] == "ok", rec["error"]
+    m = rec["metrics"]
+    assert m["n_objects"] + m["n_skipped"] == len(load_shipped_scene(scene).objects)
+    assert m["text_miou"] > 0.5 and m["absent_fp_rate"] == 0.0 and m["image_miou"] is None
+    # the absent names come from other v2 tables, so they are library names, none on this table
+    present = {o.name for o in load_shipped_scene(scene).objects}
+    assert rec["extras"]["absent"] and not {a["name"] for a in rec["extras"]["absent"]} & present
+    gt = {v: run_map_job(_job("ablation-v2", v, "color", scene, proposer="gt", **opts))[0] for v in ("global", "full")}
+    assert all(r["status"] == "ok" for r in gt.values())
+    assert gt["full"]["metrics"]["macc"] > gt["global"]["metrics"]["macc"]
+    assert set(gt["full"]["extras"]["per_class_acc"]) >= {"table"}

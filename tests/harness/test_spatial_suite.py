@@ -185,3 +185,19 @@ def test_the_parser_option_reaches_the_jobs_and_is_checked():
     assert {j.options["parser"] for j in map_suite_jobs("spatial", cfg, "r")} == {"pattern"}
     with pytest.raises(HarnessError, match=r"parser=llm: suite option 'parser': expected a spatial-question parser: semantic or pattern"):
         RunConfig(suites=("spatial",), encoder="oracle", limit=1, agent_kwargs={"parser": "llm"})
+
+
+def test_library_receptacles_can_be_asked_about():
+    from harness.maps.spatial_questions import RECEPTACLES
+    from sim_envs.assets.library import catalogue
+
+    cats = catalogue().categories
+    assert {"bowl", "box"} <= set(RECEPTACLES) and all(c in cats for c in RECEPTACLES)
+    assert all("container" in catalogue().ancestors(c) for c in RECEPTACLES)
+
+
+def test_v2_apartment_questions_name_library_objects():
+    scan = scan_scene(load_shipped_scene("household-v2-300000"), frames=24, width=160, height=120)
+    qs = generate_questions(scan, seed=0)
+    names = {o.name for o in scan.scene.objects} | {f["name"] for f in scan.graph.get("furniture", [])} | {"table"}
+    assert len({q["type"] for q in qs}) >= 6 and all(q["a"] in names and q["b"] in names for q in qs)

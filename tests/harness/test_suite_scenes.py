@@ -24,8 +24,9 @@ def _suite_scenes(name: str) -> list[tuple[str, int | None]]:
     """(scene id, scene seed or None) of every job of suite ``name`` at default options."""
     suite = get_suite(name)
     config = RunConfig(suites=(name,))
-    if suite.kind == "maps":
-        return [(j.scene_id, None) for j in map_suite_jobs(name, config, "r")]
+    if suite.kind == "maps":  # v2 scene ids end in their generator seed
+        return [(j.scene_id, int(j.scene_id.rpartition("-")[2]) if "-v2-" in j.scene_id else None)
+                for j in map_suite_jobs(name, config, "r")]
     return [(Path(j.episode.scene).stem, j.episode.scene_seed) for j in episode_jobs(suite, config, "r")]
 
 
