@@ -33,16 +33,19 @@ from __future__ import annotations
 
 from agents.concept_map import ConceptMapper, MapperConfig
 from agents.spec import AgentSpec, Option, register_agent
-from conceptfusion.perception.featurizer import FrameFeaturizer, PerceptionSpec, make_featurizer
+from conceptfusion.perception.featurizer import FrameFeaturizer, PerceptionSpec, make_featurizer, score_floor_for
 
 __all__ = ["make_mapper"]
 
 
 def make_mapper(
     perception: PerceptionSpec | str | FrameFeaturizer = "embedded", proposer: str = "rgbd", *, persistent: bool = True,
+    setting: str = "tabletop",
 ) -> ConceptMapper:
     """A :class:`ConceptMapper` for a perception spec (see the module docstring), with the
-    featurizer's score floor.
+    featurizer's score floor for ``setting`` (``"tabletop"`` or ``"household"``, see
+    :func:`~conceptfusion.perception.featurizer.score_floor_for`: the v2 tower ships a floor
+    calibrated on apartments).
 
     ``perception`` is an encoder spec string (``proposer`` then names the mask proposer), a
     :class:`~conceptfusion.perception.featurizer.PerceptionSpec`, or a featurizer already built.
@@ -55,7 +58,7 @@ def make_mapper(
         featurizer = make_featurizer(spec)
     else:
         featurizer = perception
-    return ConceptMapper(featurizer, MapperConfig(persistent=persistent, min_score=featurizer.score_floor))
+    return ConceptMapper(featurizer, MapperConfig(persistent=persistent, min_score=score_floor_for(featurizer, setting)))
 
 
 def _map_pusher(encoder: str = "embedded", proposer: str = "rgbd", scan: bool = True):
@@ -76,13 +79,13 @@ def _map_navigator(encoder: str = "embedded", proposer: str = "rgbd", seed: int 
 
     config = NavigatorConfig(integrate_every=integrate_every, keyframe_move=keyframe_move, keyframe_turn_deg=keyframe_turn_deg,
                              goal_tolerance=goal_tolerance)
-    return MapNavigator(make_mapper(encoder, proposer), config, seed=seed)
+    return MapNavigator(make_mapper(encoder, proposer, setting="household"), config, seed=seed)
 
 
 def _frame_searcher(encoder: str = "embedded", proposer: str = "rgbd"):
     from agents.baselines import FrameSearcher
 
-    return FrameSearcher(make_mapper(encoder, proposer, persistent=False))
+    return FrameSearcher(make_mapper(encoder, proposer, persistent=False, setting="household"))
 
 
 def _known_encoder(spec: str) -> bool:

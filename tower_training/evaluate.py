@@ -229,14 +229,25 @@ def scene_query_scores(scene, featurizer, vocabulary: Sequence[str], config: Flo
                        *, name_of: Callable = lambda o: o.name) -> dict:
     """:func:`map_query_scores` for a :class:`~sim_envs.scenes.format.Scene` object; ``name_of``
     gives the query name of a scene object (default its ``name``; v2 uses its category)."""
+    obs, seen = orbit_scan(scene, config.frames, config.width, config.height)
+    return frames_query_scores(scene, obs, seen, featurizer, vocabulary, config.min_pixels, name_of=name_of)
+
+
+def frames_query_scores(scene, observations: Sequence[dict], seen_n: np.ndarray, featurizer, vocabulary: Sequence[str],
+                        min_pixels: int, *, name_of: Callable = lambda o: o.name) -> dict:
+    """Fuse ``observations`` of ``scene`` into one map and score every name of ``vocabulary``
+    (the part of :func:`map_query_scores` after the scan; any views: orbits, apartment views).
+
+    ``seen_n`` (n objects,): pixels of each scene object over the views; a name is ``present``
+    when its objects were seen at least ``min_pixels`` times, ``unseen`` when seen less.
+    """
     from conceptfusion.frames import RGBDFrame
     from conceptfusion.map.fusion import PointFusionMap
     from conceptfusion.map.query import NEGATIVE_PHRASES, locate
 
-    obs, seen = orbit_scan(scene, config.frames, config.width, config.height)
     featurizer.reset(None)
     fmap = PointFusionMap(featurizer.dim, max_depth=_MAP_MAX_DEPTH)
-    for o in obs:
+    for o in observations:
         frame = RGBDFrame.from_observation(o)
         fmap.integrate(frame.rgb, frame.depth, frame.K, frame.cam_to_world, featurizer.features(frame))
     negatives = np.asarray(featurizer.encode_text(list(NEGATIVE_PHRASES)), np.float32)
@@ -245,10 +256,10 @@ def scene_query_scores(scene, featurizer, vocabulary: Sequence[str], config: Flo
         return _best_region_score(locate(fmap, np.asarray(featurizer.encode_text([name])[0], np.float32), negatives))
 
     pixels: dict[str, int] = {}
-    for obj, n in zip(scene.objects, seen):
+    for obj, n in zip(scene.objects, seen_n):
         pixels[name_of(obj)] = pixels.get(name_of(obj), 0) + int(n)
-    present = sorted(n for n, px in pixels.items() if px >= config.min_pixels)
-    unseen = sorted(n for n, px in pixels.items() if px < config.min_pixels)
+    present = sorted(n for n, px in pixels.items() if px >= min_pixels)
+    unseen = sorted(n for n, px in pixels.items() if px < min_pixels)
     absent = sorted(set(vocabulary) - set(pixels))
     return {
         "scene": scene.id,

@@ -56,6 +56,8 @@ __all__ = [
     "make_featurizer",
     "load_encoder",
     "perception_names",
+    "FLOOR_SETTINGS",
+    "score_floor_for",
 ]
 
 ORACLE = "oracle"
@@ -198,9 +200,32 @@ class FrameFeaturizer(Protocol):
         ...
 
 
-def _score_floor(encoder) -> float | None:
-    """The calibrated floor an encoder ships in ``info["metrics"]["score_floor"]`` (or None)."""
-    return getattr(encoder, "info", {}).get("metrics", {}).get("score_floor") if hasattr(encoder, "info") else None
+FLOOR_SETTINGS = ("tabletop", "household")
+"""Where text queries are asked: a tabletop (objects close by; the floor every encoder calibrates
+first) or a household apartment (objects one to a few metres from a robot base's camera)."""
+
+
+def _score_floor(encoder, setting: str = "tabletop") -> float | None:
+    """The calibrated floor an encoder ships for ``setting``: ``info["metrics"]["score_floor"]``
+    for tabletops; ``info["metrics"]["score_floor_household"]`` for apartments when it has one
+    (:mod:`tower_training.room_floor`), else its tabletop floor; None without either."""
+    metrics = getattr(encoder, "info", {}).get("metrics", {}) if hasattr(encoder, "info") else {}
+    if setting == "household" and metrics.get("score_floor_household") is not None:
+        return metrics["score_floor_household"]
+    return metrics.get("score_floor")
+
+
+def score_floor_for(featurizer, setting: str = "tabletop") -> float | None:
+    """The text-query floor a featurizer applies in ``setting`` (one of :data:`FLOOR_SETTINGS`):
+    its ``score_floors[setting]`` when it keeps floors per setting, else its one ``score_floor``.
+
+    Raises:
+        ValueError: an unknown setting.
+    """
+    if setting not in FLOOR_SETTINGS:
+        raise ValueError(f"setting: expected one of {', '.join(FLOOR_SETTINGS)}, got {setting!r}")
+    floors = getattr(featurizer, "score_floors", None)
+    return floors[setting] if floors else featurizer.score_floor
 
 
 class _EncoderBacked:
@@ -230,8 +255,9 @@ class PerceivedFeaturizer(_EncoderBacked):
             ``segmentation_hw``).
         mode: pixel-feature variant (``"full"``, ``"global"``, ``"local"``).
         uniqueness: use eq. 5's uniqueness term.
-        score_floor: the text-query floor; default: the encoder's calibrated one
-            (``encoder.info["metrics"]["score_floor"]``), else None.
+        score_floor: the text-query floor in every setting; default: the encoder's calibrated
+            ones per setting (``score_floors``, see :func:`score_floor_for`; ``score_floor`` is
+            the tabletop one), else None.
     """
 
     def __init__(self, encoder, proposer, *, mode: str = "full", uniqueness: bool = True,
@@ -241,7 +267,8 @@ class PerceivedFeaturizer(_EncoderBacked):
                              "or make_featurizer('oracle') for ground-truth features)")
         self._encoder, self.proposer = encoder, proposer
         self.mode, self.uniqueness = check_mode(mode), bool(uniqueness)
-        self.score_floor = _score_floor(encoder) if score_floor is ... else score_floor
+        self.score_floors = {k: _score_floor(encoder, k) if score_floor is ... else score_floor for k in FLOOR_SETTINGS}
+        self.score_floor = self.score_floors["tabletop"]
         self.privileged = bool(getattr(proposer, "privileged", False))
 
     def reset(self, label_names: Mapping[int, str] | None = None,

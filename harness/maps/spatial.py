@@ -16,7 +16,8 @@ from the whole scan. ``2.5d``: one scan frame fused alone, chosen from what the 
 frame is fused on its own, both parsed noun phrases are located in it with the same perception,
 and the frame kept is the one where both are found, then where the lower of their two best
 median scores is highest (to 0.01), then where the smaller of the two regions has the most
-points. No ground-truth label or segmentation is read by either method unless the perception
+points. Both use the perception's score floor for the scene's setting (tabletop, or
+household for apartments: :func:`~conceptfusion.perception.featurizer.score_floor_for`). No ground-truth label or segmentation is read by either method unless the perception
 itself is the privileged oracle.
 
 **Scoring**: a question is correct when the answer matches the truth (distance: |d - d_gt| <=
@@ -129,11 +130,12 @@ def answer_questions(scan: SceneScan, questions: list[dict], method: str, encode
     view = scan.frames[0].cam_to_world[:3, 2].copy()
     parses = [reader.parse(q["question"]) for q in questions]
     names = sorted({n for p in parses if p.ok for n in p.arguments})
+    setting = "household" if scan.scene.rooms else "tabletop"  # the floor of the scene's setting
     if method == "3d":
-        mapper = fuse_frames(make_mapper(encoder, "rgbd"), scan)
+        mapper = fuse_frames(make_mapper(encoder, "rgbd", setting=setting), scan)
         results = {n: mapper.locate(n) for n in names}
         return [{**q, **_answer(q, p, results, view)} for q, p in zip(questions, parses)]
-    mapper = make_mapper(encoder, "rgbd", persistent=False)
+    mapper = make_mapper(encoder, "rgbd", persistent=False, setting=setting)
     per_frame = []
     for frame in scan.frames:
         fuse_frames(mapper, scan, [frame])

@@ -187,11 +187,11 @@ SUITES: dict[str, Suite] = {
 }
 """Every suite by name."""
 
-DEFAULT_SUITES = ("query-open", "query", "ablation", "spatial", "rearrange-v2", "search-v2")
-"""What ``cfharness run`` runs with no ``--suite``: the v2 world (object library) for the agents
-and the open-vocabulary queries; the image, click, ablation and spatial map suites on the v1
-tables, which have no v2 version yet. The v1 agent suites (``rearrange``, ``search``) stay
-runnable by name."""
+DEFAULT_SUITES = ("query-open", "query-v2", "ablation-v2", "spatial-v2", "rearrange-v2", "search-v2")
+"""What ``cfharness run`` runs with no ``--suite``: the v2 world (object library, evaluation seeds)
+for every suite: open-vocabulary, image and click queries, the feature ablation, spatial questions,
+rearrangement and search. The v1 suites (``query``, ``ablation``, ``spatial``, ``rearrange``,
+``search``) stay runnable by name."""
 
 
 def suite_encoder(suite: Suite, run_encoder: str | None) -> str:

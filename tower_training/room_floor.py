@@ -1,0 +1,181 @@
+"""The v2 tower's score floor for apartments, derived on calibration apartments.
+
+The shipped floor (``metrics.score_floor``, :func:`tower_training.evaluate.calibrate_score_floor_v2`)
+is chosen on orbit scans of table arrangements: objects 0.5-1.4 m away, filling much of the
+frame. An object-search robot sees an apartment otherwise (from about 1.2 m up, one to a few
+metres away, small in a 160 x 120 frame), and its crops score lower against their names, so a
+table floor drops present goals there. This module derives a second floor,
+``metrics.score_floor_household``, by the same rule on what such a robot sees:
+
+* **scenes**: v2 apartments (:func:`~sim_envs.scenes.gen_household_v2.generate_household_v2`) of
+  ``calibration`` seeds from :data:`RoomFloorConfig.seed_offset` on (the table calibration takes
+  the first calibration seeds; no evaluation scene, no tower training scene): the first half
+  chooses the floor, the second half only measures it;
+* **views**: :func:`~tower_training.room_views.room_poses` views (a free floor cell of an
+  object's room, eye 0.9-1.45 m, the search camera's 70 degree field of view) at the search
+  environment's 160 x 120, fused into one map per apartment as an agent's mapper fuses them;
+* **names and rule**: as on tables: present names are the categories of objects the views saw
+  (at least ``min_pixels`` pixels), absent names every other library category except those the
+  apartment has as furniture (its chairs and bookshelves are there, though not as objects); the
+  floor maximises balanced accuracy (:func:`~tower_training.evaluate.choose_floor`).
+
+Agents that work in apartments (``map-navigator``, ``frame-searcher``) and the map suites on
+apartments read it through :func:`conceptfusion.perception.featurizer.score_floor_for`; a tower
+without it uses its table floor everywhere.
+
+    python -m tower_training.room_floor --dry-run            # derive and print
+    python -m tower_training.room_floor                      # derive and write into the shipped v2 tower
+    python -m tower_training.room_floor --tower-dir DIR      # another exported tower
+"""
+
+from __future__ import annotations
+
+import argparse
+import json
+import sys
+import time
+from dataclasses import asdict, dataclass, field
+from pathlib import Path
+
+import numpy as np
+
+from tower_training.evaluate import _floor_summary, _pooled, choose_floor, frames_query_scores
+from tower_training.room_views import RoomViewConfig
+
+__all__ = ["RoomFloorConfig", "room_floor_seeds", "apartment_query_scores", "calibrate_room_floor", "write_room_floor", "main"]
+
+FLOOR_KEY = "score_floor_household"
+"""Where the floor goes in ``tower.json``'s ``metrics`` (its rates: ``FLOOR_KEY + "_calibration"``)."""
+
+
+@dataclass(frozen=True)
+class RoomFloorConfig:
+    """Which calibration apartments, and how they are seen."""
+
+    scenes: int = 12
+    """Apartments: the first half chooses the floor, the second half measures it."""
+    seed_offset: int = 100
+    """Index of the first apartment seed among the ``calibration`` seeds (the table calibration
+    uses the first 12)."""
+    views: int = 40
+    """Views per apartment (each looks at a random object of the apartment)."""
+    min_pixels: int = 60
+    """Pixels of an object over the views for its name to count as present."""
+    view: RoomViewConfig = field(default_factory=lambda: RoomViewConfig(width=160, height=120))
+    """Camera placement and image size (the search environment's 160 x 120)."""
+    rng_seed: int = 0
+    """Seed of the views' randomness."""
+
+    def __post_init__(self) -> None:
+        for name in ("scenes", "views", "min_pixels"):
+            value = getattr(self, name)
+            if isinstance(value, bool) or not isinstance(value, int) or value < (2 if name == "scenes" else 1):
+                raise ValueError(f"{name}: expected an integer >= {2 if name == 'scenes' else 1}, got {value!r}")
+        if isinstance(self.seed_offset, bool) or not isinstance(self.seed_offset, int) or self.seed_offset < 0:
+            raise ValueError(f"seed_offset: expected an integer >= 0, got {self.seed_offset!r}")
+
+
+def room_floor_seeds(config: RoomFloorConfig, split=None) -> list[int]:
+    """The apartment seeds of a calibration: ``calibration`` seeds ``seed_offset ..`` ``seed_offset + scenes - 1``."""
+    from sim_envs.scenes.splits import splits
+
+    sp = splits() if split is None else split
+    return sp.seeds_of("calibration", config.seed_offset + config.scenes)[config.seed_offset:]
+
+
+def apartment_query_scores(seed: int, featurizer, vocabulary, config: RoomFloorConfig, rng: np.random.Generator) -> dict:
+    """Render ``config.views`` robot-height views of apartment ``seed``, fuse them and score every
+    name of ``vocabulary`` but the apartment's furniture categories
+    (:func:`~tower_training.evaluate.frames_query_scores`)."""
+    from sim_envs.scenes.gen_household_v2 import generate_household_v2
+    from tower_training.library_views import labelled_views
+    from tower_training.room_views import room_poses
+
+    scene = generate_household_v2(int(seed))
+    obs, seen = [], np.zeros(len(scene.objects), np.int64)
+    for v in labelled_views([int(seed)], lambda s: scene, room_poses, config.views, rng, config.view):
+        obs.append(v.frame.observation())
+        ids, counts = np.unique(v.frame.segmentation[v.frame.segmentation >= 0], return_counts=True)
+        seen[ids] += counts
+    furniture = {f.category for f in scene.furniture}  # a "chair" the apartment has as furniture is not absent
+    return frames_query_scores(scene, obs, seen, featurizer, [n for n in vocabulary if n not in furniture], config.min_pixels,
+                               name_of=lambda o: o.category)
+
+
+def calibrate_room_floor(config: RoomFloorConfig = RoomFloorConfig(), *, encoder=None, log=print) -> dict:
+    """Derive the apartment floor (see the module docstring) for ``encoder`` (default: the
+    shipped v2 tower); returns ``{"score_floor", "calibration": {...}, "validation": {...},
+    "seeds", "config"}``, the splits' rates as :func:`~tower_training.evaluate.calibrate_score_floor_v2`
+    reports them (``absent_rejected_same_parent``: absent names sharing a parent group with a
+    present object)."""
+    from conceptfusion.perception.featurizer import PerceivedFeaturizer, make_featurizer
+    from conceptfusion.perception.masks.registry import make_proposer
+    from sim_envs.assets.library import catalogue
+
+    featurizer = make_featurizer("embedded-v2") if encoder is None else PerceivedFeaturizer(encoder, make_proposer("rgbd"))
+    cat = catalogue()
+    vocab = sorted(cat.categories)
+    seeds = room_floor_seeds(config)
+    half = len(seeds) // 2
+    rng = np.random.default_rng(config.rng_seed)
+    per_split: dict[str, list[dict]] = {"calibration": [], "validation": []}
+    for k, seed in enumerate(seeds):
+        t0 = time.perf_counter()
+        r = apartment_query_scores(seed, featurizer, vocab, config, rng)
+        part = "calibration" if k < half else "validation"
+        per_split[part].append(r)
+        log(f"{part} {r['scene']}: {len(r['present'])} present, {len(r['absent'])} absent names, "
+            f"{len(r['unseen'])} barely seen ({time.perf_counter() - t0:.1f} s)")
+    floor = round(choose_floor(*_pooled(per_split["calibration"])), 3)
+    cfg = asdict(config)
+    cfg["view"] = {k: list(v) if isinstance(v, tuple) else v for k, v in cfg["view"].items()}
+    out: dict = {"score_floor": floor, "world": "v2", "setting": "household", "seeds": seeds, "config": cfg}
+    parent = {c: cat.categories[c].parents[0] if cat.categories[c].parents else "" for c in vocab}
+    for part, rs in per_split.items():
+        hard = [s for r in rs for n, s in r["absent"].items() if parent[n] in {parent[q] for q in r["present"]}]
+        out[part] = _floor_summary(rs, floor, hard, "same_parent", found_absent=40)
+    return out
+
+
+def write_room_floor(result: dict, tower_dir: str | Path | None = None) -> Path:
+    """Write a calibration into ``tower.json`` atomically: ``metrics.score_floor_household`` and
+    ``metrics.score_floor_household_calibration``; other fields are kept."""
+    from conceptfusion.io_utils import atomic_write_text
+    from conceptfusion.perception.image_tower import SHIPPED_TOWER_V2_DIR
+
+    path = Path(SHIPPED_TOWER_V2_DIR if tower_dir is None else tower_dir) / "tower.json"
+    info = json.loads(path.read_text())
+    metrics = info.setdefault("metrics", {})
+    metrics[FLOOR_KEY] = float(result["score_floor"])
+    metrics[FLOOR_KEY + "_calibration"] = {k: v for k, v in result.items() if k != "score_floor"}
+    atomic_write_text(path, json.dumps(info, indent=2, sort_keys=True))
+    return path
+
+
+def main(argv: list[str] | None = None) -> int:
+    p = argparse.ArgumentParser(prog="python -m tower_training.room_floor", description=__doc__.split("\n\n")[0])
+    p.add_argument("--tower-dir", default=None, help="tower folder (default: the shipped v2 tower)")
+    p.add_argument("--dry-run", action="store_true", help="print the calibration, write nothing")
+    p.add_argument("--scenes", type=int, default=RoomFloorConfig.scenes, help="calibration apartments (half choose, half measure)")
+    p.add_argument("--views", type=int, default=RoomFloorConfig.views, help="views per apartment")
+    args = p.parse_args(argv)
+    encoder = None
+    if args.tower_dir is not None:
+        from conceptfusion.perception.registry import make_encoder
+
+        encoder = make_encoder(f"embedded:{args.tower_dir}")
+    t0 = time.perf_counter()
+    result = calibrate_room_floor(RoomFloorConfig(scenes=args.scenes, views=args.views), encoder=encoder)
+    for part in ("calibration", "validation"):
+        r = result[part]
+        print(f"{part}: floor {result['score_floor']:.3f}: present found {r['present_found']:.3f} (n={r['n_present']}), "
+              f"absent rejected {r['absent_rejected']:.3f} (n={r['n_absent']}; same parent rejected "
+              f"{r['absent_rejected_same_parent']:.3f}, n={r['n_absent_same_parent']}), balanced accuracy {r['balanced_accuracy']:.3f}")
+    print(f"({time.perf_counter() - t0:.0f} s)")
+    if not args.dry_run:
+        print(f"wrote {write_room_floor(result, args.tower_dir)}")
+    return 0
+
+
+if __name__ == "__main__":
+    sys.exit(main())
