@@ -86,3 +86,20 @@ def test_the_default_comparison_is_the_v2_world():
         scenes = _suite_scenes(name)
         assert scenes and all("-v2-" in sid for sid, _ in scenes), name
         assert {splits().seed_role(seed) for _, seed in scenes} == {"evaluation"}, name
+
+
+def test_v2_calibration_search_data_regenerates_and_stays_out_of_every_suite():
+    from scenes.make_calibration_v2 import FOLDER, SEARCH_FILE, build_files
+    from scenes.shipped import ROOT
+    from tower_training.room_floor import RoomFloorConfig, room_floor_seeds
+
+    files = build_files()
+    assert len(files) == 1 + 10 and all((ROOT / rel).read_text() == text for rel, text in files.items())
+    eps = load_episodes(ROOT / SEARCH_FILE).episodes
+    assert len(eps) == 60 and {splits().seed_role(e.scene_seed) for e in eps} == {"calibration"}
+    cal_scenes = {Path(rel).stem for rel in files if rel.endswith(".json")}
+    room_floor = {f"household-v2-{s}" for s in room_floor_seeds(RoomFloorConfig())}
+    assert not cal_scenes & room_floor  # apart from the apartments that chose the score floor
+    for name in SUITES:
+        assert not {sid for sid, _ in _suite_scenes(name)} & cal_scenes, name
+    assert all(e.scene.startswith(f"{FOLDER}/") for e in eps)

@@ -1,0 +1,72 @@
+"""Calibration data of the v2 search agents (``scenes/calibration-v2/``): apartments and episodes
+to develop and choose agent settings on, never to report.
+
+- ``calibration-v2/household-v2-<seed>.json``: :data:`NUM_APARTMENTS` library apartments
+  (:func:`~sim_envs.scenes.gen_household_v2.generate_household_v2`) on ``calibration`` seeds
+  from index :data:`SEED_OFFSET` on (the tower's apartment score floor uses indices 100-111, the
+  table floor 0-11), so they hold TRAIN and VAL instances, no TEST one;
+- ``calibration-v2/search-episodes-v2.jsonl``: 6 object-search episodes per apartment, drawn as
+  the shipped ``search-v2`` ones (goals named in turn by name, synonym, attribute, function),
+  from another generator seed.
+
+No suite runs them (their seeds are not evaluation seeds; ``tests/harness/test_suite_scenes.py``).
+
+    python -m scenes.make_calibration_v2            # writes scenes/calibration-v2/
+    python -m scenes.make_calibration_v2 --check    # exits 1 if the shipped files differ
+"""
+
+from __future__ import annotations
+
+import json
+import sys
+import tempfile
+from pathlib import Path
+
+from scenes.shipped import generator_main
+from sim_envs.scenes.episodes import episodes_text
+from sim_envs.scenes.gen_household_v2 import generate_household_v2
+from sim_envs.scenes.search_episodes import generate_search_episodes
+from sim_envs.scenes.search_episodes_v2 import PER_SCENE, V2_DESCRIPTION_KINDS
+from sim_envs.scenes.splits import splits
+
+__all__ = ["FOLDER", "SEARCH_FILE", "NUM_APARTMENTS", "SEED_OFFSET", "GENERATOR_SEED", "apartment_seeds", "build_files", "main"]
+
+FOLDER = "calibration-v2"
+"""Folder under ``scenes/`` of the v2 calibration data."""
+SEARCH_FILE = f"{FOLDER}/search-episodes-v2.jsonl"
+NUM_APARTMENTS = 10
+SEED_OFFSET = 200
+"""Index of the first apartment seed among the ``calibration`` seeds."""
+GENERATOR_SEED = 7102
+
+
+def apartment_seeds() -> list[int]:
+    """Seeds of the calibration apartments: ``calibration`` seeds ``SEED_OFFSET ..`` ``SEED_OFFSET + NUM_APARTMENTS - 1``."""
+    return splits().seeds_of("calibration", SEED_OFFSET + NUM_APARTMENTS)[SEED_OFFSET:]
+
+
+def build_files() -> dict[str, str]:
+    """Relative path under ``scenes/`` -> file text: every apartment and the episode file."""
+    files = {}
+    with tempfile.TemporaryDirectory() as tmp:  # the episode generator reads scene files
+        root = Path(tmp)
+        (root / FOLDER).mkdir()
+        paths = []
+        for seed in apartment_seeds():
+            scene = generate_household_v2(seed)
+            rel = f"{FOLDER}/{scene.id}.json"
+            files[rel] = json.dumps(scene.to_json(), indent=1)
+            (root / rel).write_text(files[rel])
+            paths.append(root / rel)
+        eps = generate_search_episodes(paths, per_scene=PER_SCENE, generator_seed=GENERATOR_SEED, scenes_root=root,
+                                       description_kinds=V2_DESCRIPTION_KINDS, id_prefix="search-v2-cal")
+    files[SEARCH_FILE] = episodes_text(eps)
+    return files
+
+
+def main(argv: list[str] | None = None) -> int:
+    return generator_main(build_files, FOLDER, __doc__.splitlines()[0], argv)
+
+
+if __name__ == "__main__":
+    sys.exit(main())
