@@ -116,10 +116,13 @@ def _frame_key(results: dict, names: tuple[str, str]) -> tuple:
     return (len(found), round(min(float(np.median(r.scores_n)) for r in found), 2), min(len(r.points_n3) for r in found))
 
 
-def answer_questions(scan: SceneScan, questions: list[dict], method: str, encoder: str, *, parser: str = DEFAULT_PARSER) -> list[dict]:
+def answer_questions(scan: SceneScan, questions: list[dict], method: str, encoder: str, *, parser: str = DEFAULT_PARSER,
+                     setting: str = "tabletop") -> list[dict]:
     """Answer each question with ``method`` (``"3d"`` or ``"2.5d"``) and the parser backend
     ``parser``; returns the questions with ``parsed``, ``parse``, ``answer``, ``found``,
-    ``correct``, ``reason`` (and ``frame`` for 2.5d).
+    ``correct``, ``reason`` (and ``frame`` for 2.5d). ``setting`` (``"tabletop"`` or
+    ``"household"``: where the robot works, as its operator would configure it) picks the
+    perception's score floor.
 
     Reads the scan's frames (RGB-D and pose); the label images and names only when the
     perception is privileged (:func:`~harness.maps.scan.fuse_frames`).
@@ -130,7 +133,6 @@ def answer_questions(scan: SceneScan, questions: list[dict], method: str, encode
     view = scan.frames[0].cam_to_world[:3, 2].copy()
     parses = [reader.parse(q["question"]) for q in questions]
     names = sorted({n for p in parses if p.ok for n in p.arguments})
-    setting = "household" if scan.scene.rooms else "tabletop"  # the floor of the scene's setting
     if method == "3d":
         mapper = fuse_frames(make_mapper(encoder, "rgbd", setting=setting), scan)
         results = {n: mapper.locate(n) for n in names}
@@ -185,7 +187,8 @@ def run_spatial_scene(
     scan = scan_scene(scene, frames=n, width=width, height=height)
     questions = generate_questions(scan, seed)
     t_scan = time.perf_counter() - t0
-    answered = answer_questions(scan, questions, method, encoder, parser=parser)
+    answered = answer_questions(scan, questions, method, encoder, parser=parser,
+                                setting="household" if scene.rooms else "tabletop")
     extras = {"questions": answered, "frames": n, "image_size": [width, height], "parser": parser,
               "privileged": encoder in ORACLE_ENCODERS}
     timings = {"scan_s": t_scan, "answer_s": time.perf_counter() - t0 - t_scan}
