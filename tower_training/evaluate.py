@@ -40,7 +40,7 @@ from tower_training.data import BACKGROUND_CLASS, SOURCES, CropData, ObjectClass
 __all__ = [
     "top1", "evaluate_crops", "FloorConfig", "map_query_scores", "choose_floor", "floor_rates",
     "calibrate_score_floor", "write_score_floor", "orbit_scan", "main", "scene_query_scores", "FloorConfigV2",
-    "calibrate_score_floor_v2",
+    "calibrate_score_floor_v2", "frames_query_scores", "pooled_scores", "floor_summary",
 ]
 
 
@@ -333,27 +333,27 @@ def calibrate_score_floor(config: FloorConfig = FloorConfig(), *, encoder=None, 
             log(f"{split} {sid}: {len(r['present'])} present, {len(r['absent'])} absent names "
                 f"({time.perf_counter() - t0:.1f} s)")
 
-    floor = round(choose_floor(*_pooled(per_split["calibration"])), 3)
+    floor = round(choose_floor(*pooled_scores(per_split["calibration"])), 3)
     out: dict = {"score_floor": floor, "config": {k: list(v) if isinstance(v, tuple) else v for k, v in asdict(config).items()}}
     for split, rs in per_split.items():
         # the hard absent names: same colour word as an object the scan saw ("blue mug" beside a blue can)
         hard = [s for r in rs for n, s in r["absent"].items()
                 if n.split()[0] in {q.split()[0] for q in r["present"]}]
-        out[split] = _floor_summary(rs, floor, hard, "same_colour")
+        out[split] = floor_summary(rs, floor, hard, "same_colour")
     return out
 
 
-def _pooled(rs: list[dict]) -> tuple[list[float], list[float]]:
+def pooled_scores(rs: list[dict]) -> tuple[list[float], list[float]]:
     """Best-region scores of present and of absent names, pooled over scenes."""
     return ([s for r in rs for s in r["present"].values()], [s for r in rs for s in r["absent"].values()])
 
 
-def _floor_summary(rs: list[dict], floor: float, hard: list[float], hard_kind: str, *, found_absent: int = 0) -> dict:
+def floor_summary(rs: list[dict], floor: float, hard: list[float], hard_kind: str, *, found_absent: int = 0) -> dict:
     """How ``floor`` decides the present and absent names of scenes ``rs``: found and rejected
     rates, the rejected rate among ``hard`` absent names (``hard_kind``: what makes them hard),
     balanced accuracy, the names it misses, and (with ``found_absent``) the first absent names it
     lets through."""
-    p, a = _pooled(rs)
+    p, a = pooled_scores(rs)
     found, rejected = floor_rates(p, a, floor)
     fp = [f"{r['scene']}: {n} ({s:.2f})" for r in rs for n, s in r["absent"].items() if s >= floor]
     fn = [f"{r['scene']}: {n} ({s:.2f})" if math.isfinite(s) else f"{r['scene']}: {n} (not found)"
@@ -412,14 +412,14 @@ def calibrate_score_floor_v2(config: FloorConfigV2 = FloorConfigV2(), *, encoder
         log(f"{part} {scene.id}: {len(r['present'])} present, {len(r['absent'])} absent names "
             f"({time.perf_counter() - t0:.1f} s)")
 
-    floor = round(choose_floor(*_pooled(per_split["calibration"])), 3)
+    floor = round(choose_floor(*pooled_scores(per_split["calibration"])), 3)
     out: dict = {"score_floor": floor, "world": "v2", "seeds": seeds,
                  "config": {"scenes": config.scenes, "frames": config.scan.frames, "width": config.scan.width,
                             "height": config.scan.height, "min_pixels": config.scan.min_pixels}}
     parent = {c: cat.categories[c].parents[0] if cat.categories[c].parents else "" for c in vocab}
     for part, rs in per_split.items():
         hard = [s for r in rs for n, s in r["absent"].items() if parent[n] in {parent[q] for q in r["present"]}]
-        out[part] = _floor_summary(rs, floor, hard, "same_parent", found_absent=40)
+        out[part] = floor_summary(rs, floor, hard, "same_parent", found_absent=40)
     return out
 
 

@@ -39,7 +39,7 @@ from pathlib import Path
 
 import numpy as np
 
-from tower_training.evaluate import _floor_summary, _pooled, choose_floor, frames_query_scores
+from tower_training.evaluate import floor_summary, pooled_scores, choose_floor, frames_query_scores
 from tower_training.room_views import RoomViewConfig
 
 __all__ = ["RoomFloorConfig", "room_floor_seeds", "apartment_query_scores", "calibrate_room_floor", "write_room_floor", "main"]
@@ -126,14 +126,14 @@ def calibrate_room_floor(config: RoomFloorConfig = RoomFloorConfig(), *, encoder
         per_split[part].append(r)
         log(f"{part} {r['scene']}: {len(r['present'])} present, {len(r['absent'])} absent names, "
             f"{len(r['unseen'])} barely seen ({time.perf_counter() - t0:.1f} s)")
-    floor = round(choose_floor(*_pooled(per_split["calibration"])), 3)
+    floor = round(choose_floor(*pooled_scores(per_split["calibration"])), 3)
     cfg = asdict(config)
     cfg["view"] = {k: list(v) if isinstance(v, tuple) else v for k, v in cfg["view"].items()}
     out: dict = {"score_floor": floor, "world": "v2", "setting": "household", "seeds": seeds, "config": cfg}
     parent = {c: cat.categories[c].parents[0] if cat.categories[c].parents else "" for c in vocab}
     for part, rs in per_split.items():
         hard = [s for r in rs for n, s in r["absent"].items() if parent[n] in {parent[q] for q in r["present"]}]
-        out[part] = _floor_summary(rs, floor, hard, "same_parent", found_absent=40)
+        out[part] = floor_summary(rs, floor, hard, "same_parent", found_absent=40)
     return out
 
 
