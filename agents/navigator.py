@@ -78,15 +78,33 @@ class NavigatorConfig:
     by default."""
     keyframe_turn_deg: float = 0.0
     """The turn (degrees) that makes a frame a keyframe (see ``keyframe_move``)."""
+    stuck_steps: int = 0
+    """Bump rule (0: off): when the base has been commanded forward for this many consecutive
+    steps while following a path and its odometry moved less than ``stuck_move``, something the
+    map does not show (too low for the camera, seen too close) blocks it: the navigator marks a
+    virtual obstacle just ahead of the base, backs off for ``backoff_steps`` steps and replans.
+    Off by default until it is chosen on calibration episodes for every suite it would change."""
+    stuck_move: float = 0.02
+    """Odometry motion (m) over ``stuck_steps`` steps under which the base counts as stuck."""
+    backoff_steps: int = 2
+    """Steps of reversing at 0.2 m/s after a bump."""
 
     def __post_init__(self) -> None:
         if not (isinstance(self.goal_tolerance, (int, float)) and not isinstance(self.goal_tolerance, bool)
                 and 0 < self.goal_tolerance < math.inf):
             raise ValueError(f"goal_tolerance: expected a finite number > 0, got {self.goal_tolerance!r}")
-        for name in ("keyframe_move", "keyframe_turn_deg"):
+        for name in ("stuck_steps", "backoff_steps"):
+            value = getattr(self, name)
+            if isinstance(value, bool) or not isinstance(value, int) or value < 0:
+                raise ValueError(f"{name}: expected an integer >= 0, got {value!r}")
+        for name in ("keyframe_move", "keyframe_turn_deg", "stuck_move"):
             value = getattr(self, name)
             if not (isinstance(value, (int, float)) and not isinstance(value, bool) and 0 <= value < math.inf):
                 raise ValueError(f"{name}: expected a finite number >= 0, got {value!r}")
+
+
+_BUMP_RADIUS = 0.12
+"""Radius (m) of the virtual obstacle the bump rule marks ahead of a stuck base."""
 
 
 class MapNavigator:
@@ -122,6 +140,12 @@ class MapNavigator:
         self._seen: np.ndarray | None = None
         """Footprint (m, 2) of the goal when the map last found it."""
         self._last_fused: np.ndarray | None = None
+        self._pushing: list[np.ndarray] = []
+        """Poses of the consecutive steps commanded forward while following (the bump rule)."""
+        self._bumps: list[np.ndarray] = []
+        self._last_linear = 0.0
+        """World (x, y) of virtual obstacles the base ran into."""
+        self._backoff = 0
         self.log: list[str] = []
         """Why the agent did what it did, one line per decision (for reports)."""
 
@@ -139,6 +163,13 @@ class MapNavigator:
         pts = self.mapper.map.points
         grid = build_occupancy_grid(pts, self.config.grid)
         c = self.config
+        if self._bumps:
+            cells = np.argwhere(np.ones(grid.shape, bool))
+            centres = grid.cell_to_world(cells).reshape(*grid.shape, 2)
+            hit = np.zeros(grid.shape, bool)
+            for b in self._bumps:
+                hit |= np.linalg.norm(centres - b, axis=-1) <= _BUMP_RADIUS
+            grid = dataclasses.replace(grid, occupied_hw=grid.occupied_hw | hit)
         inflated = grid.inflate(c.robot_radius + c.clearance + grid.resolution / 2)
         if position_xy is None or not inflated.is_blocked_xy(np.asarray(position_xy)[None])[0]:
             return grid, inflated
@@ -224,6 +255,27 @@ class MapNavigator:
             return search_action(0.0, self.config.look_angular)
         return search_action(cmd.linear, cmd.angular)
 
+    def _bumped(self, pose: np.ndarray) -> bool:
+        """The bump rule (``config.stuck_steps``): True when the base is stuck (and then a virtual
+        obstacle is marked ahead of it and the back-off starts)."""
+        c = self.config
+        if c.stuck_steps <= 0:
+            return False
+        if self._last_linear < 0.1:  # turning on the spot or slowing down: no push
+            self._pushing = [pose.copy()]
+            return False
+        self._pushing.append(pose.copy())
+        if len(self._pushing) <= c.stuck_steps:
+            return False
+        self._pushing = self._pushing[-(c.stuck_steps + 1):]
+        if float(np.hypot(*(self._pushing[-1][:2] - self._pushing[0][:2]))) >= c.stuck_move:
+            return False
+        ahead = pose[:2] + (c.robot_radius + _BUMP_RADIUS) * np.array([math.cos(pose[2]), math.sin(pose[2])])
+        self._bumps.append(ahead)
+        self._pushing, self._backoff = [], max(1, c.backoff_steps)
+        self._note(f"stuck at {np.round(pose[:2], 2).tolist()}: obstacle marked at {np.round(ahead, 2).tolist()}, backing off")
+        return True
+
     def _fuse_now(self, pose: np.ndarray) -> bool:
         """Whether this step's frame goes into the map (``integrate_every``, then the keyframe rule)."""
         c = self.config
@@ -238,6 +290,13 @@ class MapNavigator:
     # -- protocol --------------------------------------------------------------------------
 
     def act(self, observation, info: dict | None = None) -> np.ndarray:
+        action = self._act(observation, info)
+        self._last_linear = float(action[0])
+        if self._phase != "follow":
+            self._pushing = []
+        return action
+
+    def _act(self, observation, info: dict | None) -> np.ndarray:
         pose = np.asarray(observation["base_pose"], np.float64)
         if not self._started:
             self._goal = str(observation["goal"])
@@ -254,7 +313,14 @@ class MapNavigator:
             if self._turned < 2 * math.pi - 0.3:
                 return search_action(0.0, self.config.look_angular)
             return self._plan(pose)
+        if self._backoff > 0:
+            self._backoff -= 1
+            if self._backoff > 0:
+                return search_action(-0.2, 0.0)
+            return self._plan(pose)
         if self._phase == "follow":
+            if self._bumped(pose):
+                return search_action(-0.2, 0.0)
             if self._steps % self.config.recheck_every == 0:
                 if not self._to_goal and self.mapper.locate(self._goal).found:
                     self._note(f"'{self._goal}' appeared: replan")
