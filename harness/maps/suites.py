@@ -38,7 +38,7 @@ __all__ = ["MapCase", "MapSuite", "MAP_SUITES", "get_map_suite", "scene_ids", "D
 
 DEFAULT_SCENES = {"tabletop": 6, "household": 4, "tabletop-v2": 12, "household-v2": 4}
 """How many shipped scenes of each kind a suite uses by default (the first ones, sorted, that the
-split file does not reserve). v2 tables vary more (4-12 objects of 100+ categories), so the v2
+split file does not reserve). v2 tables vary more (4-12 objects of 91 categories), so the v2
 suites take twice as many."""
 
 
