@@ -40,7 +40,7 @@ from tower_training.data import BACKGROUND_CLASS, SOURCES, CropData, ObjectClass
 __all__ = [
     "top1", "evaluate_crops", "FloorConfig", "map_query_scores", "choose_floor", "floor_rates",
     "calibrate_score_floor", "write_score_floor", "orbit_scan", "main", "scene_query_scores", "FloorConfigV2",
-    "calibrate_score_floor_v2", "frames_query_scores", "pooled_scores", "floor_summary",
+    "calibrate_score_floor_v2", "frames_query_scores", "pooled_scores", "floor_summary", "library_floor",
 ]
 
 
@@ -412,29 +412,40 @@ def calibrate_score_floor_v2(config: FloorConfigV2 = FloorConfigV2(), *, encoder
         log(f"{part} {scene.id}: {len(r['present'])} present, {len(r['absent'])} absent names "
             f"({time.perf_counter() - t0:.1f} s)")
 
+    floor, summaries = library_floor(per_split)
+    return {"score_floor": floor, "world": "v2", "seeds": seeds,
+            "config": {"scenes": config.scenes, "frames": config.scan.frames, "width": config.scan.width,
+                       "height": config.scan.height, "min_pixels": config.scan.min_pixels}, **summaries}
+
+
+def library_floor(per_split: dict[str, list[dict]]) -> tuple[float, dict[str, dict]]:
+    """The floor chosen on ``per_split["calibration"]`` (library category names; rounded to 3
+    decimals) and :func:`floor_summary` of every split, the hard absent names being those that
+    share a nearest parent group with a present object ("cup" beside a mug)."""
+    from sim_envs.assets.library import catalogue
+
+    cats = catalogue().categories
     floor = round(choose_floor(*pooled_scores(per_split["calibration"])), 3)
-    out: dict = {"score_floor": floor, "world": "v2", "seeds": seeds,
-                 "config": {"scenes": config.scenes, "frames": config.scan.frames, "width": config.scan.width,
-                            "height": config.scan.height, "min_pixels": config.scan.min_pixels}}
-    parent = {c: cat.categories[c].parents[0] if cat.categories[c].parents else "" for c in vocab}
+    parent = {c: cats[c].parents[0] if cats[c].parents else "" for c in cats}
+    summaries = {}
     for part, rs in per_split.items():
         hard = [s for r in rs for n, s in r["absent"].items() if parent[n] in {parent[q] for q in r["present"]}]
-        out[part] = floor_summary(rs, floor, hard, "same_parent", found_absent=40)
-    return out
+        summaries[part] = floor_summary(rs, floor, hard, "same_parent", found_absent=40)
+    return floor, summaries
 
 
-def write_score_floor(result: dict, tower_dir: str | Path | None = None) -> Path:
+def write_score_floor(result: dict, tower_dir: str | Path | None = None, *, key: str = "score_floor") -> Path:
     """Write a calibration (:func:`calibrate_score_floor`) into ``tower.json`` atomically:
-    ``metrics.score_floor`` (what :func:`agents.builtin.make_mapper` reads) and
-    ``metrics.score_floor_calibration`` (the measured rates)."""
+    ``metrics.<key>`` (what :func:`agents.builtin.make_mapper` reads; ``score_floor`` for
+    tables) and ``metrics.<key>_calibration`` (the measured rates); other fields are kept."""
     from conceptfusion.perception.image_tower import SHIPPED_TOWER_DIR
     from conceptfusion.io_utils import atomic_write_text
 
     path = Path(SHIPPED_TOWER_DIR if tower_dir is None else tower_dir) / "tower.json"
     info = json.loads(path.read_text())
     metrics = info.setdefault("metrics", {})
-    metrics["score_floor"] = float(result["score_floor"])
-    metrics["score_floor_calibration"] = {k: v for k, v in result.items() if k != "score_floor"}
+    metrics[key] = float(result["score_floor"])
+    metrics[key + "_calibration"] = {k: v for k, v in result.items() if k != "score_floor"}
     atomic_write_text(path, json.dumps(info, indent=2, sort_keys=True))
     return path
 

@@ -31,7 +31,6 @@ without it uses its table floor everywhere.
 from __future__ import annotations
 
 import argparse
-import json
 import sys
 import time
 from dataclasses import asdict, dataclass, field
@@ -39,7 +38,7 @@ from pathlib import Path
 
 import numpy as np
 
-from tower_training.evaluate import floor_summary, pooled_scores, choose_floor, frames_query_scores
+from tower_training.evaluate import frames_query_scores, library_floor, write_score_floor
 from tower_training.room_views import RoomViewConfig
 
 __all__ = ["RoomFloorConfig", "room_floor_seeds", "apartment_query_scores", "calibrate_room_floor", "write_room_floor", "main"]
@@ -126,30 +125,18 @@ def calibrate_room_floor(config: RoomFloorConfig = RoomFloorConfig(), *, encoder
         per_split[part].append(r)
         log(f"{part} {r['scene']}: {len(r['present'])} present, {len(r['absent'])} absent names, "
             f"{len(r['unseen'])} barely seen ({time.perf_counter() - t0:.1f} s)")
-    floor = round(choose_floor(*pooled_scores(per_split["calibration"])), 3)
+    floor, summaries = library_floor(per_split)
     cfg = asdict(config)
     cfg["view"] = {k: list(v) if isinstance(v, tuple) else v for k, v in cfg["view"].items()}
-    out: dict = {"score_floor": floor, "world": "v2", "setting": "household", "seeds": seeds, "config": cfg}
-    parent = {c: cat.categories[c].parents[0] if cat.categories[c].parents else "" for c in vocab}
-    for part, rs in per_split.items():
-        hard = [s for r in rs for n, s in r["absent"].items() if parent[n] in {parent[q] for q in r["present"]}]
-        out[part] = floor_summary(rs, floor, hard, "same_parent", found_absent=40)
-    return out
+    return {"score_floor": floor, "world": "v2", "setting": "household", "seeds": seeds, "config": cfg, **summaries}
 
 
 def write_room_floor(result: dict, tower_dir: str | Path | None = None) -> Path:
     """Write a calibration into ``tower.json`` atomically: ``metrics.score_floor_household`` and
     ``metrics.score_floor_household_calibration``; other fields are kept."""
-    from conceptfusion.io_utils import atomic_write_text
     from conceptfusion.perception.image_tower import SHIPPED_TOWER_V2_DIR
 
-    path = Path(SHIPPED_TOWER_V2_DIR if tower_dir is None else tower_dir) / "tower.json"
-    info = json.loads(path.read_text())
-    metrics = info.setdefault("metrics", {})
-    metrics[FLOOR_KEY] = float(result["score_floor"])
-    metrics[FLOOR_KEY + "_calibration"] = {k: v for k, v in result.items() if k != "score_floor"}
-    atomic_write_text(path, json.dumps(info, indent=2, sort_keys=True))
-    return path
+    return write_score_floor(result, SHIPPED_TOWER_V2_DIR if tower_dir is None else tower_dir, key=FLOOR_KEY)
 
 
 def main(argv: list[str] | None = None) -> int:
