@@ -14,7 +14,9 @@ from pathlib import Path
 __all__ = ["add_eval_commands"]
 
 
-def _parse_kv(items: list[str] | None) -> dict:
+def parse_agent_options(items: list[str] | None) -> dict:
+    """``--agent-option KEY=VALUE`` items as a dict of strings; a malformed item or a key given
+    twice with different values is a ``ValueError`` naming it."""
     out = {}
     for item in items or []:
         key, sep, value = item.partition("=")
@@ -59,7 +61,7 @@ def cmd_run(args: argparse.Namespace) -> int:
     try:
         config = RunConfig(
             suites=suites, agents=tuple(args.agent) if args.agent else None, encoder=args.encoder,
-            agent_kwargs=_parse_kv(args.agent_option), limit=args.limit, seed=args.seed, seeds=args.seeds, backend=args.backend,
+            agent_kwargs=parse_agent_options(args.agent_option), limit=args.limit, seed=args.seed, seeds=args.seeds, backend=args.backend,
             workers=args.workers, address=args.address, timeout_s=args.timeout, plugins=tuple(args.plugin or ()),
             record=args.record,
         )
