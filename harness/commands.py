@@ -11,7 +11,7 @@ import sys
 import time
 from pathlib import Path
 
-__all__ = ["add_eval_commands"]
+__all__ = ["add_eval_commands", "fail_fast_stop", "parse_agent_options"]
 
 
 def parse_agent_options(items: list[str] | None) -> dict:
@@ -72,8 +72,18 @@ def cmd_run(args: argparse.Namespace) -> int:
         return 2
     t0 = time.monotonic()
     print(f"run {args.out}: suites {', '.join(suites)}; encoder {config.encoder or 'each suite default'}; backend {config.backend}", file=sys.stderr)
+    stopped: list[dict] = []  # the record that settled a regression (--fail-fast)
+    stop = None
+    if args.fail_fast:
+        settled = fail_fast_stop(plan.todo, suites, agents=config.agents, floor_as=floor_as)
+
+        def stop(rec: dict) -> bool:
+            if settled(rec):
+                stopped.append(rec)
+                return True
+            return False
     try:
-        records = plan.execute()
+        records = plan.execute(stop=stop)
     except (ValueError, FileExistsError, FileNotFoundError, RayUnavailableError) as exc:
         print(f"cfharness run: {exc}", file=sys.stderr)
         return 2
@@ -86,7 +96,11 @@ def cmd_run(args: argparse.Namespace) -> int:
         render_missing_videos(args.out)
         path, html_path = write_reports([args.out], Path(args.out) / "report")
         print(f"report: {path}\nHTML report: {html_path}")
-    return _check_floors(records, suites, agents=config.agents, floor_as=floor_as, limited=config.limit is not None)
+    if stopped:
+        print(f"--fail-fast: stopped after {stopped[0]['suite']} {stopped[0]['agent']} {stopped[0]['episode_id']} settled a "
+              f"regression; --resume runs the rest", file=sys.stderr)
+    return _check_floors(records, suites, agents=config.agents, floor_as=floor_as, limited=config.limit is not None,
+                         stopped_early=bool(stopped))
 
 
 def _parse_floor_as(items: list[str] | None, config) -> dict[str, str]:
@@ -108,8 +122,73 @@ def _parse_floor_as(items: list[str] | None, config) -> dict[str, str]:
     return out
 
 
+def _held_bounds(suites: tuple[str, ...], agents: tuple[str, ...] | None, floor_as: dict[str, str]) -> tuple[list[tuple], list[str]]:
+    """The bounds a run is held to, ``(suite, agent, kind, value, pinned, held)`` each (``held``:
+    how the report names it), and the problems found before any record is read (a regression
+    suite with no bounds, an agent borrowing a bound its reference lacks)."""
+    from harness.runner.suites import get_suite
+
+    held_bounds, bad = [], []
+    for name in suites:
+        suite = get_suite(name)
+        bounds = {**{a: ("floor", v) for a, v in suite.floors.items()}, **{a: ("ceiling", v) for a, v in suite.ceilings.items()}}
+        if suite.calibration_file is not None and not bounds:
+            bad.append(f"{name}: no calibrated floors (run python -m harness.runner.floors --calibrate)")
+            continue
+        to_check = list(bounds) if agents is None else [a for a in agents if a in bounds or a in floor_as]
+        for agent in to_check:
+            ref = floor_as.get(agent, agent)
+            if ref not in bounds:
+                bad.append(f"{name}: {agent} is held to the bound of {ref}, which has none in this suite "
+                           f"(agents with bounds: {', '.join(bounds)})")
+                continue
+            kind, value = bounds[ref]
+            held = f"its {kind} {value:.0%}" + (f" (that of {ref})" if ref != agent else "")
+            held_bounds.append((name, agent, kind, value, suite.agent_limits.get(ref, suite.limit), held))
+    return held_bounds, bad
+
+
+def _broken(kind: str, value: float, k: int, n: int, planned: int | None = None) -> bool:
+    """Whether ``k`` successes in ``n`` episodes break the bound for certain. With ``planned``
+    (the episodes the run would have run, >= n), the ones not run count at their best: as
+    successes against a floor, as failures against a ceiling."""
+    total = max(n, planned or n)
+    if kind == "floor":
+        return k + (total - n) < value * total - 1e-9
+    return k > value * total + 1e-9
+
+
+def fail_fast_stop(jobs, suites: tuple[str, ...], *, agents: tuple[str, ...] | None = None,
+                   floor_as: dict[str, str] | None = None):
+    """A ``stop`` callback for :meth:`~harness.runner.run.RunPlan.execute` (``--fail-fast``): True
+    once a record settles a regression: an episode of a bounded agent crashed, or its successes
+    so far cannot reach its floor (or already pass its ceiling) whatever its remaining episodes
+    of ``jobs`` do."""
+    bounds, _ = _held_bounds(suites, agents, dict(floor_as or {}))
+    watched = {(suite, agent): (kind, value) for suite, agent, kind, value, _, _ in bounds}
+    planned: dict[tuple[str, str], int] = {}
+    for job in jobs:
+        key = (job.suite, job.agent)
+        planned[key] = planned.get(key, 0) + 1
+    seen: dict[tuple[str, str], list[int]] = {}
+
+    def stop(rec: dict) -> bool:
+        key = (rec.get("suite"), rec.get("agent"))
+        if key not in watched:
+            return False
+        if rec.get("status") == "failed":
+            return True
+        counts = seen.setdefault(key, [0, 0])
+        counts[0] += bool(rec.get("metrics", {}).get("success"))
+        counts[1] += 1
+        kind, value = watched[key]
+        return _broken(kind, value, counts[0], counts[1], planned.get(key, counts[1]))
+
+    return stop
+
+
 def _check_floors(records: list[dict], suites: tuple[str, ...], *, agents: tuple[str, ...] | None = None,
-                  floor_as: dict[str, str] | None = None, limited: bool = False) -> int:
+                  floor_as: dict[str, str] | None = None, limited: bool = False, stopped_early: bool = False) -> int:
     """1 when an agent of a regression suite breaks its calibrated bound
     (:mod:`harness.runner.floors`), with one ``REGRESSION`` line on stderr per problem; else 0.
 
@@ -119,51 +198,41 @@ def _check_floors(records: list[dict], suites: tuple[str, ...], *, agents: tuple
     A problem is: a success rate below the agent's floor or above its ceiling; an episode that
     crashed (status ``failed``: the agent or environment raised); an agent to check with no records; fewer episodes than its bound is sized for (unless the run was ``limited``
     with ``--limit``, which only prints a note); a regression suite with no calibrated bounds.
-    Failed and timed-out episodes count as unsuccessful.
+    Failed and timed-out episodes count as unsuccessful. A run ``stopped_early``
+    (``--fail-fast``) is judged on the episodes it ran, each missing one counted at its best for
+    the agent (a success against a floor, a failure against a ceiling), so only settled
+    verdicts are reported.
     """
     from harness.report.stats import metric_value
-    from harness.runner.suites import get_suite
 
-    floor_as = dict(floor_as or {})
-    bad, notes = [], []
-    for name in suites:
-        suite = get_suite(name)
-        bounds = {**{a: ("floor", v) for a, v in suite.floors.items()}, **{a: ("ceiling", v) for a, v in suite.ceilings.items()}}
-        if suite.calibration_file is not None and not bounds:
-            bad.append(f"{name}: no calibrated floors (run python -m harness.runner.floors --calibrate)")
+    bounds, bad = _held_bounds(suites, agents, dict(floor_as or {}))
+    notes = []
+    for name, agent, kind, value, pinned, held in bounds:
+        rs = {(r.get("episode_id"), r.get("seed")): r for r in records if r["suite"] == name and r["agent"] == agent}
+        if not rs and not stopped_early:
+            bad.append(f"{name}: {agent} has no records; {held} needs its {pinned or 'all'} pinned episodes run")
             continue
-        if agents is None:
-            to_check = list(bounds)
+        episodes = len({e for e, _ in rs})
+        if pinned is not None and episodes < pinned:
+            line = f"{name}: {agent} ran {episodes} of the {pinned} pinned episodes {held} is sized for"
+            quiet = limited or stopped_early
+            (notes if quiet else bad).append(line + (" (--limit)" if limited else " (--fail-fast stopped the run)" if stopped_early else ""))
+        k = sum(bool(metric_value(r, "success")) for r in rs.values())
+        n = len(rs)
+        crashed = sorted(e for (e, _), r in rs.items() if r.get("status") == "failed")
+        if crashed:
+            bad.append(f"{name}: {agent} crashed on {len(crashed)} of {n} episodes ({', '.join(map(str, crashed[:3]))}"
+                       f"{', ...' if len(crashed) > 3 else ''}); see their records' error")
+        planned = max(n, pinned or n) if stopped_early else n
+        if not _broken(kind, value, k, n, planned):
+            continue
+        rate = f"succeeded on {k} of {n} episodes" + (f" ({k / n:.0%})" if n else "")
+        if planned > n:
+            rate += f" before --fail-fast stopped the run (at most {k + planned - n if kind == 'floor' else k} of {planned})"
+        if kind == "floor":
+            bad.append(f"{name}: {agent} {rate}, below {held}")
         else:
-            to_check = [a for a in agents if a in bounds or a in floor_as]
-        for agent in to_check:
-            ref = floor_as.get(agent, agent)
-            if ref not in bounds:
-                bad.append(f"{name}: {agent} is held to the bound of {ref}, which has none in this suite "
-                           f"(agents with bounds: {', '.join(bounds)})")
-                continue
-            kind, value = bounds[ref]
-            held = f"its {kind} {value:.0%}" + (f" (that of {ref})" if ref != agent else "")
-            pinned = suite.agent_limits.get(ref, suite.limit)
-            rs = {(r.get("episode_id"), r.get("seed")): r for r in records if r["suite"] == name and r["agent"] == agent}
-            if not rs:
-                bad.append(f"{name}: {agent} has no records; {held} needs its {pinned or 'all'} pinned episodes run")
-                continue
-            episodes = len({e for e, _ in rs})
-            if pinned is not None and episodes < pinned:
-                line = f"{name}: {agent} ran {episodes} of the {pinned} pinned episodes {held} is sized for"
-                (notes if limited else bad).append(line + (" (--limit)" if limited else ""))
-            k = sum(bool(metric_value(r, "success")) for r in rs.values())
-            n = len(rs)
-            crashed = sorted(e for (e, _), r in rs.items() if r.get("status") == "failed")
-            if crashed:
-                bad.append(f"{name}: {agent} crashed on {len(crashed)} of {n} episodes ({', '.join(map(str, crashed[:3]))}"
-                           f"{', ...' if len(crashed) > 3 else ''}); see their records' error")
-            if kind == "floor" and k < value * n - 1e-9:
-                bad.append(f"{name}: {agent} succeeded on {k} of {n} episodes ({k / n:.0%}), below {held}")
-            elif kind == "ceiling" and k > value * n + 1e-9:
-                bad.append(f"{name}: {agent} succeeded on {k} of {n} episodes ({k / n:.0%}), above {held}: "
-                           "a random agent should not succeed that often (a broken success function?)")
+            bad.append(f"{name}: {agent} {rate}, above {held}: a random agent should not succeed that often (a broken success function?)")
     for line in notes:
         print(f"note: {line}", file=sys.stderr)
     for line in bad:
@@ -281,6 +350,9 @@ def add_eval_commands(sub) -> None:
     run.add_argument("--floor-as", action="append", metavar="AGENT=BUILTIN",
                      help="in the regression suites, hold --agent AGENT to the calibrated floor (or ceiling) of the "
                      "built-in agent BUILTIN, repeatable (e.g. mypkg.agents:MyPusher=map-pusher)")
+    run.add_argument("--fail-fast", action="store_true",
+                     help="in the regression suites, stop the run as soon as an agent's calibrated bound is certainly "
+                     "broken (a crash, or a floor its remaining episodes can no longer reach); --resume finishes it")
     run.add_argument("--record", default="failures", metavar="{failures,all,none}",
                      help="episode recordings in OUT/replays/ (camera frames, poses, actions, the map's answers; "
                      "videos with the report): failures (default), all or none")

@@ -201,17 +201,28 @@ class RunPlan:
     def results(self) -> Path:
         return self.run_dir / "results.jsonl"
 
-    def execute(self, *, on_record: Callable[[dict], None] | None = None, progress: bool = True) -> list[dict]:
+    def execute(self, *, on_record: Callable[[dict], None] | None = None, progress: bool = True,
+                stop: Callable[[dict], bool] | None = None) -> list[dict]:
         """Run the jobs still to do on the config's backend, appending each record as it comes;
-        returns all records of the run."""
+        returns all records of the run. ``stop`` (called with each new record after it is
+        written) ends the run early when it returns True: the jobs in flight are stopped and the
+        rest left undone, so ``resume`` can finish the run later."""
         config = self.config
         bar = Progress(len(self.todo), "+".join(config.suites)) if progress and self.todo else None
-        for rec in run_jobs(self.todo, backend=config.backend, workers=config.workers, address=config.address):
-            append_record(self.results, rec)
-            if on_record:
-                on_record(rec)
-            if bar:
-                bar.update(_progress_note(rec))
+        records = run_jobs(self.todo, backend=config.backend, workers=config.workers, address=config.address)
+        try:
+            for rec in records:
+                append_record(self.results, rec)
+                if on_record:
+                    on_record(rec)
+                if bar:
+                    bar.update(_progress_note(rec))
+                if stop is not None and stop(rec):
+                    break
+        finally:
+            close = getattr(records, "close", None)
+            if close is not None:  # a generator backend: stop its workers now
+                close()
         return load_results(self.results)
 
 

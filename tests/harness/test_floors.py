@@ -268,11 +268,18 @@ def test_a_sabotaged_agent_fails_the_regression_run(tmp_path, suite, agent, buil
     """The sabotaged agent runs the pinned episodes of the built-in one it copies and is held to
     that agent's calibrated floor: the regression command exits 1 and names it."""
     n = get_suite(suite).agent_limits[builtin]
-    done = _run_cli(tmp_path, "--suite", suite, "--agent", agent, "--floor-as", f"{agent}={builtin}", "--limit", str(n))
+    done = _run_cli(tmp_path, "--suite", suite, "--agent", agent, "--floor-as", f"{agent}={builtin}", "--limit", str(n),
+                    "--fail-fast", "--workers", "2")
     assert done.returncode == 1, done.stdout + done.stderr
     assert "crashed" not in done.stderr  # it runs, it just does worse
     assert f"REGRESSION {suite}: {agent} succeeded on" in done.stderr
     assert "below its floor" in done.stderr and f"(that of {builtin})" in done.stderr
+    # --fail-fast stopped once the floor was out of reach: fewer episodes than pinned, and the
+    # verdict recomputed from the records that did run says the floor cannot be met
+    records = [json.loads(line) for line in (tmp_path / "run" / "results.jsonl").read_text().splitlines()]
+    k, ran = sum(r["metrics"]["success"] for r in records), len(records)
+    assert "--fail-fast: stopped after" in done.stderr and ran < n
+    assert k + (n - ran) < get_suite(suite).floors[builtin] * n
 
 
 def test_floor_as_needs_an_agent_of_the_run_and_a_builtin(tmp_path):

@@ -11,6 +11,7 @@ import sys
 import time
 from pathlib import Path
 
+import numpy as np
 import pytest
 
 from harness.runner.backends import run_jobs
@@ -68,6 +69,56 @@ def test_map_agents_complete_an_episode_with_embedded_perception(tmp_path, suite
     assert rec["status"] == "ok", rec["error"]
     assert rec["encoder"] == "embedded" and rec["extras"]["uses_map"] is True and rec["extras"]["privileged"] is False
     assert isinstance(rec["metrics"]["success"], bool) and rec["metrics"]["steps"] >= 1
+
+
+def _records(suite: str, agent: str, outcomes: list[bool], status: str = "ok") -> list[dict]:
+    return [{"suite": suite, "agent": agent, "episode_id": f"e{i}", "seed": 0, "status": status, "metrics": {"success": ok}}
+            for i, ok in enumerate(outcomes)]
+
+
+def test_fail_fast_stops_exactly_when_a_floor_is_out_of_reach(capsys):
+    from harness.commands import fail_fast_stop
+
+    suite = get_suite("regression-rearrange")
+    n, floor = suite.agent_limits["map-pusher"], suite.floors["map-pusher"]
+    jobs = episode_jobs(suite, RunConfig(suites=(suite.name,), agents=("map-pusher",)), "t")
+    assert len(jobs) == n
+    stop = fail_fast_stop(jobs, (suite.name,), agents=("map-pusher",))
+    allowed = n - int(np.ceil(floor * n - 1e-9))  # failures the floor tolerates
+    verdicts = [stop(r) for r in _records(suite.name, "map-pusher", [False] * (allowed + 1))]
+    assert verdicts == [False] * allowed + [True]
+    # the verdict on the records that ran: broken for certain, reported as stopped early
+    partial = _records(suite.name, "map-pusher", [False] * (allowed + 1))
+    assert _check_floors(partial, (suite.name,), agents=("map-pusher",), stopped_early=True) == 1
+    err = capsys.readouterr().err
+    assert "before --fail-fast stopped the run" in err and "below its floor" in err and "note:" in err
+    # one failure fewer is not settled: no regression, only a note that the run stopped
+    assert _check_floors(partial[:-1], (suite.name,), agents=("map-pusher",), stopped_early=True) == 0
+    # a crash settles at once; agents without a bound never stop the run
+    assert fail_fast_stop(jobs, (suite.name,), agents=("map-pusher",))(_records(suite.name, "map-pusher", [False], "failed")[0])
+    assert not fail_fast_stop(jobs, (suite.name,), agents=("map-pusher",))(_records(suite.name, "random-pusher", [True])[0])
+
+
+def test_fail_fast_stops_a_ceiling_once_passed():
+    from harness.commands import fail_fast_stop
+
+    suite = get_suite("regression-search")
+    n, ceiling = suite.agent_limits["random-walker"], suite.ceilings["random-walker"]
+    jobs = episode_jobs(suite, RunConfig(suites=(suite.name,), agents=("random-walker",)), "t")
+    stop = fail_fast_stop(jobs, (suite.name,), agents=("random-walker",))
+    allowed = int(np.floor(ceiling * n + 1e-9))
+    assert [stop(r) for r in _records(suite.name, "random-walker", [True] * (allowed + 1))] == [False] * allowed + [True]
+
+
+def test_execute_stops_when_told_and_resume_finishes_the_run(tmp_path):
+    from harness.runner.run import plan_run
+
+    config = RunConfig(suites=("regression-rearrange",), agents=("random-pusher",), limit=3, backend="serial")
+    plan = plan_run(config, tmp_path)
+    records = plan.execute(stop=lambda rec: True, progress=False)
+    assert len(records) == 1
+    rest = plan_run(config, tmp_path, resume=True)
+    assert len(rest.todo) == 2 and len(rest.execute(progress=False)) == 3
 
 
 def _cheap_jobs(limit: int = 2):
