@@ -28,6 +28,7 @@ class RandomPusher:
     """Random straight pushes on the table top; stops after a random number of pushes."""
 
     privileged = False
+    reads_scan = False
 
     def __init__(self, *, table_half_xy: tuple[float, float] = (0.55, 0.35), max_pushes: int = 4, seed: int = 0) -> None:
         self.half = np.asarray(table_half_xy, np.float64)

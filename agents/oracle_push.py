@@ -101,6 +101,8 @@ class OraclePushAgent:
     """
 
     privileged = True
+    reads_scan = False
+    """It plans from the simulator's ground truth, never from the orbit scan."""
 
     def __init__(
         self,

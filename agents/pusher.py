@@ -101,6 +101,9 @@ class MapPusher:
 
     def __init__(self, mapper: ConceptMapper, config: PusherConfig = PusherConfig(), *, use_scan: bool = True) -> None:
         self.mapper, self.config, self.use_scan = mapper, config, bool(use_scan)
+        self.reads_scan = self.use_scan
+        """Whether :meth:`act` reads the observation's orbit scan (``scan_*``); runners leave the
+        scan out for agents that do not."""
         self.privileged = mapper.privileged
         self.reset()
 

@@ -29,6 +29,10 @@ class Agent(Protocol):
     privileged: bool
     """True when the agent reads ground truth (it then receives ``info`` in :meth:`act`)."""
 
+    # Optional: ``reads_scan = False`` says a tabletop agent never reads the observation's orbit
+    # scan (``scan_*``), and the runner then renders none (see ``harness.runner.tasks``); an
+    # agent without the attribute gets the scan the suite sets.
+
     def reset(self, *, seed: int | None = None) -> None:
         """Forget the last episode; ``seed`` seeds any randomness of the agent."""
 

@@ -122,8 +122,14 @@ def close_cached_envs() -> None:
 def _env_kwargs(job: EpisodeJob, agent) -> dict:
     """The job's environment settings, with the ground-truth segmentation rendered only for a
     privileged agent: the others never see ``info``, and skipping its render pass saves a third
-    of a tabletop episode's rendering without changing any observation."""
-    return {"segmentation": bool(getattr(agent, "privileged", False)), **job.env_kwargs}
+    of a tabletop episode's rendering without changing any observation. A tabletop agent that
+    says it never reads the orbit scan (``reads_scan`` False: the single-frame and random pushers,
+    the oracle) gets no scan either: rendering it costs a fifth of such an episode, and nothing
+    it reads changes. Agents without the attribute get everything the suite sets."""
+    kwargs = {"segmentation": bool(getattr(agent, "privileged", False)), **job.env_kwargs}
+    if job.task == "tabletop_rearrange" and kwargs.get("scan_frames") and getattr(agent, "reads_scan", True) is False:
+        kwargs["scan_frames"] = 0
+    return kwargs
 
 
 def _search_env(kwargs: dict):

@@ -1,0 +1,51 @@
+"""Tabletop agents that never read the orbit scan get none, and their episodes are unchanged."""
+
+import dataclasses
+
+import pytest
+
+from agents.registry import make_agent
+from harness.runner import tasks
+from harness.runner.run import RunConfig, episode_jobs
+from harness.runner.suites import get_suite
+from harness.runner.tasks import close_cached_envs, run_episode
+
+
+def _jobs(agent: str, limit: int = 2):
+    suite = get_suite("regression-rearrange")
+    return episode_jobs(suite, RunConfig(suites=(suite.name,), agents=(agent,), limit=limit, backend="serial"), "t")
+
+
+@pytest.mark.parametrize("agent, reads", [("map-pusher", True), ("frame-pusher", False), ("random-pusher", False),
+                                          ("oracle-pusher", False)])
+def test_only_agents_that_read_the_scan_get_one(agent, reads):
+    job = _jobs(agent, 1)[0]
+    assert job.env_kwargs["scan_frames"] == 6
+    built = make_agent(job.agent, **job.agent_kwargs)
+    assert getattr(built, "reads_scan", True) is reads
+    assert tasks._env_kwargs(job, built)["scan_frames"] == (6 if reads else 0)
+
+
+def test_an_agent_without_the_attribute_keeps_the_scan():
+    class Plain:
+        privileged = False
+
+    job = _jobs("random-pusher", 1)[0]
+    assert tasks._env_kwargs(job, Plain())["scan_frames"] == 6
+
+
+@pytest.mark.parametrize("agent", ["frame-pusher", "oracle-pusher"])
+def test_leaving_the_scan_out_changes_no_record(agent, monkeypatch):
+    def outcome(rec):
+        return rec["status"], rec["metrics"], rec["category"], rec["extras"]
+
+    try:
+        without = [outcome(run_episode(j)) for j in _jobs(agent)]
+        close_cached_envs()
+        # the same episodes with the scan rendered, as before agents could decline it
+        monkeypatch.setattr(tasks, "_env_kwargs", lambda job, a: {"segmentation": bool(a.privileged), **job.env_kwargs})
+        with_scan = [outcome(run_episode(j)) for j in _jobs(agent)]
+    finally:
+        close_cached_envs()
+    assert all(status == "ok" for status, *_ in without)
+    assert without == with_scan
