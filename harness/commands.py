@@ -75,7 +75,10 @@ def cmd_run(args: argparse.Namespace) -> int:
     stopped: list[dict] = []  # the record that settled a regression (--fail-fast)
     stop = None
     if args.fail_fast:
-        settled = fail_fast_stop(plan.todo, suites, agents=config.agents, floor_as=floor_as)
+        from harness.runner.results import load_results
+
+        settled = fail_fast_stop(plan.jobs, suites, agents=config.agents, floor_as=floor_as,
+                                 done=load_results(plan.results) if plan.results.exists() else [])
 
         def stop(rec: dict) -> bool:
             if settled(rec):
@@ -159,11 +162,14 @@ def _broken(kind: str, value: float, k: int, n: int, planned: int | None = None)
 
 
 def fail_fast_stop(jobs, suites: tuple[str, ...], *, agents: tuple[str, ...] | None = None,
-                   floor_as: dict[str, str] | None = None):
+                   floor_as: dict[str, str] | None = None, done: list[dict] | None = None):
     """A ``stop`` callback for :meth:`~harness.runner.run.RunPlan.execute` (``--fail-fast``): True
     once a record settles a regression: an episode of a bounded agent crashed, or its successes
     so far cannot reach its floor (or already pass its ceiling) whatever its remaining episodes
-    of ``jobs`` do."""
+    of ``jobs`` (every job of the run) do. ``done``: the records a resumed run already holds,
+    counted first."""
+    from harness.runner.results import latest_records
+
     bounds, _ = _held_bounds(suites, agents, dict(floor_as or {}))
     watched = {(suite, agent): (kind, value) for suite, agent, kind, value, _, _ in bounds}
     planned: dict[tuple[str, str], int] = {}
@@ -184,6 +190,8 @@ def fail_fast_stop(jobs, suites: tuple[str, ...], *, agents: tuple[str, ...] | N
         kind, value = watched[key]
         return _broken(kind, value, counts[0], counts[1], planned.get(key, counts[1]))
 
+    for rec in latest_records(done or []):
+        stop(rec)
     return stop
 
 

@@ -72,7 +72,8 @@ def test_map_agents_complete_an_episode_with_embedded_perception(tmp_path, suite
 
 
 def _records(suite: str, agent: str, outcomes: list[bool], status: str = "ok") -> list[dict]:
-    return [{"suite": suite, "agent": agent, "episode_id": f"e{i}", "seed": 0, "status": status, "metrics": {"success": ok}}
+    return [{"suite": suite, "agent": agent, "encoder": "oracle", "episode_id": f"e{i}", "seed": 0, "status": status,
+             "metrics": {"success": ok}}
             for i, ok in enumerate(outcomes)]
 
 
@@ -94,6 +95,9 @@ def test_fail_fast_stops_exactly_when_a_floor_is_out_of_reach(capsys):
     assert "before --fail-fast stopped the run" in err and "below its floor" in err and "note:" in err
     # one failure fewer is not settled: no regression, only a note that the run stopped
     assert _check_floors(partial[:-1], (suite.name,), agents=("map-pusher",), stopped_early=True) == 0
+    # a resumed run counts the records it already holds: one more failure settles it
+    resumed = fail_fast_stop(jobs, (suite.name,), agents=("map-pusher",), done=partial[:-1])
+    assert resumed(_records(suite.name, "map-pusher", [False] * (allowed + 1))[-1])
     # a crash settles at once; agents without a bound never stop the run
     assert fail_fast_stop(jobs, (suite.name,), agents=("map-pusher",))(_records(suite.name, "map-pusher", [False], "failed")[0])
     assert not fail_fast_stop(jobs, (suite.name,), agents=("map-pusher",))(_records(suite.name, "random-pusher", [True])[0])
