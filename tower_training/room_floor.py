@@ -1,6 +1,6 @@
 """The v2 tower's score floor for apartments, derived on calibration apartments.
 
-The shipped floor (``metrics.score_floor``, :func:`tower_training.evaluate.calibrate_score_floor_v2`)
+The shipped floor (``metrics.score_floor``, :func:`tower_training.score_floor.calibrate_score_floor_v2`)
 is chosen on orbit scans of table arrangements: objects 0.5-1.4 m away, filling much of the
 frame. An object-search robot sees an apartment otherwise (from about 1.2 m up, one to a few
 metres away, small in a 160 x 120 frame), and its crops score lower against their names, so a
@@ -17,7 +17,7 @@ table floor drops present goals there. This module derives a second floor,
 * **names and rule**: as on tables: present names are the categories of objects the views saw
   (at least ``min_pixels`` pixels), absent names every other library category except those the
   apartment has as furniture (its chairs and bookshelves are there, though not as objects); the
-  floor maximises balanced accuracy (:func:`~tower_training.evaluate.choose_floor`).
+  floor maximises balanced accuracy (:func:`~tower_training.score_floor.choose_floor`).
 
 Agents that work in apartments (``map-navigator``, ``frame-searcher``) and the map suites on
 apartments read it through :func:`conceptfusion.perception.featurizer.score_floor_for`; a tower
@@ -38,7 +38,7 @@ from pathlib import Path
 
 import numpy as np
 
-from tower_training.evaluate import frames_query_scores, library_floor, write_score_floor
+from tower_training.score_floor import frames_query_scores, library_floor, write_score_floor
 from tower_training.room_views import RoomViewConfig
 
 __all__ = ["RoomFloorConfig", "room_floor_seeds", "apartment_query_scores", "calibrate_room_floor", "write_room_floor", "main"]
@@ -85,7 +85,7 @@ def room_floor_seeds(config: RoomFloorConfig, split=None) -> list[int]:
 def apartment_query_scores(seed: int, featurizer, vocabulary, config: RoomFloorConfig, rng: np.random.Generator) -> dict:
     """Render ``config.views`` robot-height views of apartment ``seed``, fuse them and score every
     name of ``vocabulary`` but the apartment's furniture categories
-    (:func:`~tower_training.evaluate.frames_query_scores`)."""
+    (:func:`~tower_training.score_floor.frames_query_scores`)."""
     from sim_envs.scenes.gen_household_v2 import generate_household_v2
     from tower_training.library_views import labelled_views
     from tower_training.room_views import room_poses
@@ -104,7 +104,7 @@ def apartment_query_scores(seed: int, featurizer, vocabulary, config: RoomFloorC
 def calibrate_room_floor(config: RoomFloorConfig = RoomFloorConfig(), *, encoder=None, log=print) -> dict:
     """Derive the apartment floor (see the module docstring) for ``encoder`` (default: the
     shipped v2 tower); returns ``{"score_floor", "calibration": {...}, "validation": {...},
-    "seeds", "config"}``, the splits' rates as :func:`~tower_training.evaluate.calibrate_score_floor_v2`
+    "seeds", "config"}``, the splits' rates as :func:`~tower_training.score_floor.calibrate_score_floor_v2`
     reports them (``absent_rejected_same_parent``: absent names sharing a parent group with a
     present object)."""
     from conceptfusion.perception.featurizer import PerceivedFeaturizer, make_featurizer

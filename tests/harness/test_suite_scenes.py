@@ -13,7 +13,7 @@ from harness.runner.run import RunConfig, episode_jobs
 from harness.runner.suites import SUITES, get_suite, suite_episodes
 from sim_envs.scenes.episodes import SCENES_ROOT, load_episodes
 from sim_envs.scenes.splits import splits
-from tower_training.evaluate import FloorConfig
+from tower_training.score_floor import FloorConfig
 
 RESERVED = frozenset(splits().reserved_scene_ids())
 FLOOR_CALIBRATION = frozenset(p.stem for p in (SCENES_ROOT / "calibration").glob("*.json") if "episodes" not in p.stem)

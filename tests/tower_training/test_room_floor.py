@@ -15,7 +15,7 @@ from agents.registry import make_agent
 from conceptfusion.perception.featurizer import PerceivedFeaturizer, make_featurizer, score_floor_for
 from conceptfusion.perception.image_tower import SHIPPED_TOWER_V2_DIR
 from sim_envs.scenes.splits import splits
-from tower_training.evaluate import FloorConfigV2
+from tower_training.score_floor import FloorConfigV2
 from tower_training.room_floor import FLOOR_KEY, RoomFloorConfig, apartment_query_scores, room_floor_seeds
 
 SHIPPED = json.loads((SHIPPED_TOWER_V2_DIR / "tower.json").read_text())["metrics"]
