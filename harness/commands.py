@@ -78,7 +78,7 @@ def cmd_run(args: argparse.Namespace) -> int:
         from harness.runner.results import load_results
 
         settled = fail_fast_stop(plan.jobs, suites, agents=config.agents, floor_as=floor_as,
-                                 done=load_results(plan.results) if plan.results.exists() else [])
+                                 done=load_results(plan.results))
 
         def stop(rec: dict) -> bool:
             if settled(rec):

@@ -18,16 +18,14 @@ the evaluation suites.
 from __future__ import annotations
 
 import argparse
-import dataclasses
 import sys
 import uuid
 from pathlib import Path
 
 from conceptfusion.errors import HarnessError
-from harness.runner.backends import run_jobs
-from harness.runner.results import append_record, completed_keys, latest_records, load_results, record_key
-from harness.runner.run import RunConfig, episode_jobs
-from harness.runner.suites import SCENES_ROOT, Suite, get_suite
+from harness.runner.results import latest_records, record_key
+from harness.runner.run import RunConfig, episode_jobs, run_missing_jobs
+from harness.runner.suites import SCENES_ROOT, Suite, get_suite, suite_over
 
 __all__ = ["DEVELOPMENT_EPISODES", "development_suite", "develop", "main"]
 
@@ -46,9 +44,7 @@ def development_suite(name: str) -> Suite:
     """
     if name not in DEVELOPMENT_EPISODES:
         raise HarnessError(f"--suite: expected a suite with development episodes ({', '.join(DEVELOPMENT_EPISODES)}), got {name!r}")
-    suite = get_suite(name)
-    return dataclasses.replace(suite, name=f"{name}-develop", episodes_file=SCENES_ROOT / DEVELOPMENT_EPISODES[name],
-                               limit=None, agent_limits={}, floors={}, ceilings={}, calibration_file=None)
+    return suite_over(get_suite(name), f"{name}-develop", SCENES_ROOT / DEVELOPMENT_EPISODES[name])
 
 
 def develop(suite_name: str, out: str | Path, *, agents: tuple[str, ...] | None = None, agent_kwargs: dict | None = None,
@@ -63,15 +59,9 @@ def develop(suite_name: str, out: str | Path, *, agents: tuple[str, ...] | None 
     jobs = episode_jobs(suite, config, uuid.uuid4().hex[:12])
     results = Path(out) / "results.jsonl"
     results.parent.mkdir(parents=True, exist_ok=True)
-    done = completed_keys(load_results(results)) if results.exists() else set()
-    todo = [j for j in jobs if record_key(j.key_record()) not in done]
-    for i, rec in enumerate(run_jobs(todo, backend=backend, workers=workers), start=1):
-        append_record(results, rec)
-        if progress:
-            print(f"[{i}/{len(todo)}] {rec['agent']} {rec['episode_id']} {rec['status']} "
-                  f"success={rec['metrics'].get('success')} {rec['timings'].get('wall_s', 0):.1f}s", file=sys.stderr)
     wanted = {record_key(j.key_record()) for j in jobs}
-    records = [r for r in latest_records(load_results(results)) if record_key(r) in wanted]
+    records = [r for r in latest_records(run_missing_jobs(jobs, results, backend=backend, workers=workers, progress=progress))
+               if record_key(r) in wanted]
     summary: dict[str, tuple[int, int]] = {}
     for agent in dict.fromkeys(j.agent for j in jobs):
         mine = [r for r in records if r["agent"] == agent]

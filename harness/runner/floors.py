@@ -74,7 +74,6 @@ when anything differs from the committed floors file.
 from __future__ import annotations
 
 import argparse
-import dataclasses
 import json
 import sys
 import uuid
@@ -87,10 +86,9 @@ from conceptfusion.errors import HarnessError
 from conceptfusion.io_utils import atomic_write_text
 from conceptfusion.names import unknown_name_error
 from harness.report.stats import metric_value
-from harness.runner.backends import run_jobs
-from harness.runner.results import append_record, completed_keys, latest_records, load_results, record_key
-from harness.runner.run import RunConfig, episode_jobs
-from harness.runner.suites import FLOORS_FILE, SUITES, Suite, suite_encoder, suite_episodes
+from harness.runner.results import latest_records, load_results
+from harness.runner.run import RunConfig, episode_jobs, run_missing_jobs
+from harness.runner.suites import FLOORS_FILE, SUITES, Suite, suite_encoder, suite_episodes, suite_over
 from sim_envs.scenes.episodes import SCENES_ROOT, load_episodes
 
 __all__ = [
@@ -308,8 +306,7 @@ def calibration_suite(suite: Suite) -> Suite:
     """``suite`` over its calibration episodes (all of them), named ``<suite>-calibration``."""
     if suite.calibration_file is None:
         raise HarnessError(f"suite {suite.name!r} has no calibration episodes (not a regression suite)")
-    return dataclasses.replace(suite, name=f"{suite.name}-calibration", episodes_file=suite.calibration_file, limit=None,
-                               agent_limits={}, floors={}, ceilings={}, calibration_file=None)
+    return suite_over(suite, f"{suite.name}-calibration", suite.calibration_file)
 
 
 def records_file(suite: Suite, folder: Path = RECORDS_DIR) -> Path:
@@ -453,14 +450,7 @@ def calibrate(suites: list[Suite] | None = None, *, work_dir: str | Path = "runs
         cal = calibration_suite(suite)
         config = RunConfig(suites=(suite.name,), backend=backend, workers=workers)
         jobs += episode_jobs(cal, config, uuid.uuid4().hex[:12])
-    done = completed_keys(load_results(results))
-    todo = [j for j in jobs if record_key(j.key_record()) not in done]
-    for i, rec in enumerate(run_jobs(todo, backend=backend, workers=workers), start=1):
-        append_record(results, rec)
-        if progress:
-            print(f"[{i}/{len(todo)}] {rec['suite']} {rec['agent']} {rec['episode_id']} {rec['status']} "
-                  f"success={rec['metrics'].get('success')} {rec['timings'].get('wall_s', 0):.1f}s", file=sys.stderr)
-    records = latest_records(load_results(results))
+    records = latest_records(run_missing_jobs(jobs, results, backend=backend, workers=workers, progress=progress))
     for suite in suites:
         name = calibration_suite(suite).name
         order = {a: i for i, a in enumerate(suite.agents)}

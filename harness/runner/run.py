@@ -39,7 +39,7 @@ from harness.runner.settings import accepts_keyword, check_agent, validate_run_c
 from harness.runner.suites import Suite, get_suite, suite_encoder, suite_episodes
 from harness.runner.tasks import EpisodeJob
 
-__all__ = ["RunConfig", "RunPlan", "plan_run", "episode_jobs", "suite_jobs", "run_suites", "Progress"]
+__all__ = ["RunConfig", "RunPlan", "plan_run", "episode_jobs", "suite_jobs", "run_suites", "run_missing_jobs", "Progress"]
 
 
 @dataclass(frozen=True)
@@ -263,6 +263,22 @@ def plan_run(config: RunConfig, run_dir: str | Path, *, resume: bool = False) ->
     done = completed_keys(load_results(results))
     todo = [j for j in jobs if record_key(j.key_record()) not in done]
     return RunPlan(config, run_dir, run_id, jobs, todo)
+
+
+def run_missing_jobs(jobs: list[Job], results: str | Path, *, backend: str = "process", workers: int | None = None,
+                     progress: bool = True) -> list[dict]:
+    """Run the ``jobs`` that have no record in ``results`` yet (an interrupted run resumes),
+    appending each record as it comes, with one progress line per record on stderr; returns
+    every record of the file. For runs outside a run folder (floor calibrations, development
+    runs on calibration episodes)."""
+    done = completed_keys(load_results(results))
+    todo = [j for j in jobs if record_key(j.key_record()) not in done]
+    for i, rec in enumerate(run_jobs(todo, backend=backend, workers=workers), start=1):
+        append_record(results, rec)
+        if progress:
+            print(f"[{i}/{len(todo)}] {rec['suite']} {rec['agent']} {rec['episode_id']} {rec['status']} "
+                  f"success={rec['metrics'].get('success')} {rec['timings'].get('wall_s', 0):.1f}s", file=sys.stderr)
+    return load_results(results)
 
 
 def run_suites(

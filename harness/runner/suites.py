@@ -36,6 +36,7 @@ v1 tower's score floor); ``limit`` and the per-agent counts take the first episo
 
 from __future__ import annotations
 
+import dataclasses
 from dataclasses import dataclass, field
 from pathlib import Path
 
@@ -47,7 +48,7 @@ from sim_envs.scenes.episodes import SCENES_ROOT, Episode, load_episodes
 from sim_envs.scenes.splits import splits
 
 __all__ = ["Suite", "SUITES", "get_suite", "DEFAULT_SUITES", "SEARCH_V2_LIMIT", "suite_encoder", "suite_episodes", "FLOORS_FILE",
-           "calibrated_bounds"]
+           "calibrated_bounds", "suite_over"]
 
 FLOORS_FILE = Path(__file__).resolve().parents[1] / "data" / "floors" / "floors.json"
 """The regression suites' floors, ceilings and episode counts, written by
@@ -198,6 +199,14 @@ def suite_encoder(suite: Suite, run_encoder: str | None) -> str:
     """The perception a suite runs with: its pinned encoder, else the run's ``--encoder``, else
     the suite's default (the shipped tower of its world)."""
     return suite.encoder or run_encoder or suite.default_encoder
+
+
+def suite_over(suite: Suite, name: str, episodes_file: Path) -> Suite:
+    """``suite`` (its agents, environment settings and perception) over every episode of another
+    file, named ``name``, with no limits, bounds or calibration file of its own: the suite's
+    calibration and development runs."""
+    return dataclasses.replace(suite, name=name, episodes_file=Path(episodes_file), limit=None, agent_limits={}, floors={},
+                               ceilings={}, calibration_file=None)
 
 
 def suite_episodes(suite: Suite) -> list[Episode]:

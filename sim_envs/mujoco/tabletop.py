@@ -92,12 +92,11 @@ class MujocoTabletop:
         geom_object = body_object[model.geom_bodyid]
         self.mj = MujocoScene(scene, model, data, geom_object, object_body)
         self._finger_geom = mujoco.mj_name2id(model, mujoco.mjtObj.mjOBJ_GEOM, "fingertip")
-        self._finger_qpos = np.array([model.jnt_qposadr[mujoco.mj_name2id(model, mujoco.mjtObj.mjOBJ_JOINT, f"pusher_{a}")] for a in "xyz"])
-        self._finger_dof = np.array([model.jnt_dofadr[mujoco.mj_name2id(model, mujoco.mjtObj.mjOBJ_JOINT, f"pusher_{a}")] for a in "xyz"])
+        joints = [mujoco.mj_name2id(model, mujoco.mjtObj.mjOBJ_JOINT, f"pusher_{a}") for a in "xyz"]
         # The pusher's x, y, z joints are consecutive, so plain slices address them (a tenth of the
         # cost of index arrays in the physics loop, where they are set every step).
-        self._finger_q = _as_slice(self._finger_qpos)
-        self._finger_v = _as_slice(self._finger_dof)
+        self._finger_q = _as_slice(np.array([model.jnt_qposadr[j] for j in joints]))
+        self._finger_v = _as_slice(np.array([model.jnt_dofadr[j] for j in joints]))
         self._park_v = np.array(self._park)
         self._obj_qpos = np.array([model.jnt_qposadr[model.body_jntadr[b]] for b in object_body], np.int64)
         self._obj_dof = np.array([model.jnt_dofadr[model.body_jntadr[b]] for b in object_body], np.int64)
