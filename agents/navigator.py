@@ -25,9 +25,11 @@ import math
 from dataclasses import dataclass, field
 
 import numpy as np
+from scipy import ndimage
 
 from agents.concept_map import ConceptMapper, privileged_labels
 from agents.frontier import choose_frontier, find_frontiers
+from conceptfusion.cameras import backproject, transform_points
 from planners.occupancy import GridConfig, build_occupancy_grid, nearest_free_cell, reachable_goal_near
 from planners.ompl_2d import BasePlannerConfig, plan_base_path
 from planners.replan import check_path_blocked
@@ -88,6 +90,13 @@ class NavigatorConfig:
     """Odometry motion (m) over ``stuck_steps`` steps under which the base counts as stuck."""
     backoff_steps: int = 2
     """Steps of reversing at 0.2 m/s after a bump."""
+    explore_range: float = 0.0
+    """Close-range exploration (0: off): space counts as explored for frontiers only where a
+    fused frame saw it from at most this depth (m). A room seen through a doorway from 5 m away
+    is mapped, but its objects cover a few pixels there, too few for a perceived encoder to
+    recognise; with a range, frontiers stay at the edge of what was seen up close, so the base
+    goes and looks. The occupancy grid and the planner are unchanged (obstacles seen from afar
+    still block paths)."""
 
     def __post_init__(self) -> None:
         if not (isinstance(self.goal_tolerance, (int, float)) and not isinstance(self.goal_tolerance, bool)
@@ -97,11 +106,17 @@ class NavigatorConfig:
             value = getattr(self, name)
             if isinstance(value, bool) or not isinstance(value, int) or value < 0:
                 raise ValueError(f"{name}: expected an integer >= 0, got {value!r}")
-        for name in ("keyframe_move", "keyframe_turn_deg", "stuck_move"):
+        for name in ("keyframe_move", "keyframe_turn_deg", "stuck_move", "explore_range"):
             value = getattr(self, name)
             if not (isinstance(value, (int, float)) and not isinstance(value, bool) and 0 <= value < math.inf):
                 raise ValueError(f"{name}: expected a finite number >= 0, got {value!r}")
 
+
+_CLOSE_STRIDE = 2
+"""Pixel stride of the depth samples that mark space seen up close (``explore_range``)."""
+
+_CLOSE_FILL = 2
+"""Closing iterations that fill the gaps between those samples on the grid."""
 
 _BUMP_RADIUS = 0.12
 """Radius (m) of the virtual obstacle the bump rule marks ahead of a stuck base."""
@@ -146,6 +161,9 @@ class MapNavigator:
         self._last_linear = 0.0
         """World (x, y) of virtual obstacles the base ran into."""
         self._backoff = 0
+        self._close_keys = np.zeros(0, np.int64)
+        """Space seen within ``explore_range``: world (x, y) on a lattice of half the grid's
+        cell side, as ``ix * 2**32 + iy`` keys, sorted and unique."""
         self.log: list[str] = []
         """Why the agent did what it did, one line per decision (for reports)."""
 
@@ -179,6 +197,40 @@ class MapNavigator:
             near = np.linalg.norm(centres - np.asarray(position_xy), axis=-1) <= max(c.robot_radius / 2, grid.resolution)
             inflated = dataclasses.replace(inflated, occupied_hw=inflated.occupied_hw & ~near)
         return grid, inflated
+
+    def _see_close(self, observation) -> None:
+        """Add the space this frame shows within ``explore_range`` to the close-range set."""
+        c = self.config
+        depth = np.asarray(observation["depth"], np.float32)[::_CLOSE_STRIDE, ::_CLOSE_STRIDE]
+        K = np.asarray(observation["K"], np.float64).copy()
+        K[:2] /= _CLOSE_STRIDE  # sample (r, c) is pixel (stride r, stride c)
+        cam = backproject(depth, K, max_depth=c.explore_range).reshape(-1, 3)
+        cam = cam[np.isfinite(cam).all(axis=1)]
+        if len(cam) == 0:
+            return
+        xy = transform_points(np.asarray(observation["cam_to_world"], np.float64), cam.astype(np.float64))[:, :2]
+        step = c.grid.resolution / 2
+        ij = np.floor(xy / step).astype(np.int64)
+        keys = (ij[:, 0] << 32) + (ij[:, 1] & 0xFFFFFFFF)
+        self._close_keys = np.union1d(self._close_keys, keys)
+
+    def _frontier_grid(self, grid):
+        """The grid frontiers are found on: ``grid`` itself, or with ``explore_range`` its
+        observed cells narrowed to those seen up close (occupied cells stay observed)."""
+        if self.config.explore_range <= 0:
+            return grid
+        close = np.zeros(grid.shape, bool)
+        if len(self._close_keys):
+            ix = self._close_keys >> 32
+            iy = (self._close_keys & 0xFFFFFFFF).astype(np.int64)
+            iy = np.where(iy >= 2**31, iy - 2**32, iy)
+            step = self.config.grid.resolution / 2
+            cells = grid.world_to_cell((np.stack([ix, iy], axis=1) + 0.5) * step)
+            cells = cells[grid.in_bounds(cells)]
+            close[cells[:, 0], cells[:, 1]] = True
+            # Depth samples land sparsely on far, slanted floor: close gaps of a few cells.
+            close = ndimage.binary_closing(close, iterations=_CLOSE_FILL)
+        return dataclasses.replace(grid, known_hw=(grid.known_hw & close) | grid.occupied_hw)
 
     def _within_reach(self, footprint: np.ndarray, start: np.ndarray) -> float | None:
         """Distance (m) from ``start`` to the footprint when close enough to stop, else None."""
@@ -220,7 +272,7 @@ class MapNavigator:
             else:
                 self._note(f"'{goal_text}' found but not reachable from here; exploring")
         if target is None:
-            frontier = choose_frontier(find_frontiers(grid, start, inflated=inflated), start, self._visited)
+            frontier = choose_frontier(find_frontiers(self._frontier_grid(grid), start, inflated=inflated), start, self._visited)
             if frontier is None:
                 self._note("no goal and no frontier left: stop")
                 return search_action(stop=True)
@@ -305,6 +357,8 @@ class MapNavigator:
         if self._fuse_now(pose):
             self.mapper.integrate(observation, segmentation=(info or {}).get("segmentation") if self.privileged else None)
             self._last_fused = pose.copy()
+            if self.config.explore_range > 0:
+                self._see_close(observation)
         self._steps += 1
         if self._last_yaw is not None:
             self._turned += abs(math.remainder(pose[2] - self._last_yaw, 2 * math.pi))
