@@ -121,14 +121,20 @@ def run(task: str, agent_name: str, encoder: str, episodes: int, options: dict |
 
     folder, name = EPISODE_FILES[(task, world)]
     eps = load_episodes(SCENES_ROOT / folder / name).episodes[:episodes]
-    if task == "search":
-        env = ObjectSearchEnv(width=160, height=120)
-    else:
-        env = TabletopRearrangeEnv(width=160, height=120, scan_frames=8)
     agent = make_agent(agent_name, encoder=encoder, **(options or {}))
+    # As the harness builds them (harness.runner.tasks): the ground-truth segmentation pass only
+    # for a privileged agent, the orbit scan only for an agent that reads it.
+    seg = bool(getattr(agent, "privileged", False))
+    if task == "search":
+        env = ObjectSearchEnv(width=160, height=120, segmentation=seg)
+    else:
+        env = TabletopRearrangeEnv(width=160, height=120, scan_frames=8 if getattr(agent, "reads_scan", True) else 0, segmentation=seg)
     timer = ExclusiveTimer()
     steps, walls, successes = 0, [], 0
     with ExitStack() as stack:
+        from threadpoolctl import threadpool_limits
+
+        stack.enter_context(threadpool_limits(limits=1, user_api="blas"))  # as every harness job runs
         for p in _patches(timer, agent):
             stack.enter_context(p)
         env_step = timer.wrap("render", env.step)

@@ -85,10 +85,15 @@ def longest_first(jobs: list[Job]) -> list[int]:
 
 def _run_job(job: Job) -> list[dict]:
     """What a worker runs for a job (module level, so that Ray ships it by reference); a
-    ``SystemExit`` inside the job becomes its ``failed`` record."""
+    ``SystemExit`` inside the job becomes its ``failed`` record. numpy's BLAS runs on one thread
+    during the job (see :func:`limit_numpy_blas`; restored afterwards, for the serial backend's
+    caller)."""
+    from threadpoolctl import threadpool_limits
+
     t0 = time.monotonic()
     try:
-        return job.run()
+        with threadpool_limits(limits=1, user_api="blas"):
+            return job.run()
     except SystemExit as exc:
         return [job.failure_record("failed", f"SystemExit: the job called sys.exit({exc.code!r}); recorded as failed",
                                    time.monotonic() - t0)]
@@ -164,7 +169,10 @@ def limit_numpy_blas(threads: int) -> list[str]:
     A worker of a full pool has one core. numpy's OpenBLAS otherwise keeps a thread per core that
     spins after each matrix product, burning the CPU the next render or proposal pass needs:
     measured on a search step, 78 ms of CPU with it and 46 ms without, for the same wall time
-    alone and the same results (its products split rows, not sums, across threads).
+    alone and the same results (its products split rows, not sums, across threads). Alone on
+    the machine one thread is faster too: the spinning threads hold the core onnxruntime's
+    second thread wants (a v2 search step: 33-35 ms wall and 58-63 ms CPU with two BLAS threads,
+    29 ms and 34 ms with one), so every job runs with one (:func:`_run_job`).
     """
     from threadpoolctl import threadpool_info, threadpool_limits
 

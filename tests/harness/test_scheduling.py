@@ -42,3 +42,26 @@ def test_a_worker_limits_numpys_blas_to_its_share_of_the_cores():
     )
     out = subprocess.run([sys.executable, "-c", code], capture_output=True, text=True, check=True).stdout.split(maxsplit=1)
     assert int(out[0]) >= 1 and out[1].strip() == "[1]"
+
+
+def test_every_job_runs_with_one_blas_thread_and_the_callers_count_comes_back():
+    import subprocess
+    import sys
+
+    code = (
+        "import numpy, threadpoolctl\n"
+        "from harness.runner.backends import run_jobs\n"
+        "def blas():\n"
+        "    return sorted({i['num_threads'] for i in threadpoolctl.threadpool_info() if i['user_api'] == 'blas'})\n"
+        "class J:\n"
+        "    run_id, suite, timeout_s, plugins, task, label = 'r', 's', 60.0, (), 't', 'probe'\n"
+        "    def key_record(self): return {}\n"
+        "    def failure_record(self, status, error, wall_s): return {'status': status}\n"
+        "    def run(self): return [{'blas': blas()}]\n"
+        "before = blas()\n"
+        "inside = [r['blas'] for r in run_jobs([J()], backend='serial')]\n"
+        "print(before, inside, blas())\n"
+    )
+    env = {**__import__("os").environ, "OPENBLAS_NUM_THREADS": "2", "OMP_NUM_THREADS": "2"}
+    out = subprocess.run([sys.executable, "-c", code], capture_output=True, text=True, check=True, env=env).stdout.strip()
+    assert out == "[2] [[1]] [2]", out
