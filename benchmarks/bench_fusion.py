@@ -169,7 +169,9 @@ def main() -> None:
     ap.add_argument("--repeats", type=int, default=3)
     ap.add_argument("--per-pixel-frames", type=int, default=20, help="0 skips the per-pixel path")
     args = ap.parse_args()
-    print(f"load average before: {' '.join(f'{x:.1f}' for x in os.getloadavg())} ({os.cpu_count()} CPUs)")
+    from _machine import probe_line
+
+    print(probe_line())
     views = render_orbit(args.frames)
     bench_inputs(views, palettes(views), args.repeats)
     if args.per_pixel_frames:

@@ -128,7 +128,9 @@ def main() -> None:
     ap.add_argument("--dim", type=int, default=512)
     ap.add_argument("--repeats", type=int, default=20, help="timed queries")
     args = ap.parse_args()
-    print(f"load average before: {' '.join(f'{x:.1f}' for x in os.getloadavg())} ({os.cpu_count()} CPUs)")
+    from _machine import probe_line
+
+    print(probe_line())
     fmap = bench_fusion(args.frames, args.dim)
     bench_memory(fmap, min(args.frames, 60), args.dim)
     bench_query(args.points, args.dim, args.repeats)

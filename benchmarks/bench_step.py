@@ -189,8 +189,9 @@ def main(argv: list[str] | None = None) -> int:
         if not sep:
             parser.error(f"--search-option: expected KEY=VALUE, got {item!r}")
         options[key.strip()] = value.strip()
-    load = os.getloadavg()[0] if hasattr(os, "getloadavg") else float("nan")
-    print(f"load average at start: {load:.2f} on {os.cpu_count()} cores")
+    from benchmarks._machine import probe_line
+
+    print(probe_line())
     encoder = args.encoder or {"v1": "embedded", "v2": "embedded-v2"}[args.world]
     if args.search:
         report(run("search", "map-navigator", encoder, args.search, options, args.world))

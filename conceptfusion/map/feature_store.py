@@ -32,7 +32,7 @@ import numpy as np
 
 from conceptfusion.map import _kernels
 from conceptfusion.map._rowhash import EMPTY, build_table, hash_weights, lookup_or_add, row_hashes
-from conceptfusion.map._threads import run_ranges
+from conceptfusion.map._threads import one_blas_thread, run_ranges
 
 __all__ = ["FeatureStore"]
 
@@ -183,7 +183,8 @@ class FeatureStore:
         atoms, lut_atom, cols, lut_new = _kernels.lookup_tables(self.point_ids, rows, new_ids, self._num_bank)
         if len(atoms) == 0:  # fresh points: no dot products needed
             return lut_atom, lut_new, np.zeros((0, len(cols)), np.float32)
-        block = self.bank[atoms] @ self.bank[cols].T
+        with one_blas_thread():
+            block = self.bank[atoms] @ self.bank[cols].T
         return lut_atom, lut_new, np.ascontiguousarray(block, np.float32)
 
     def add_observations(self, rows: np.ndarray, bank_ids: np.ndarray, alpha: np.ndarray) -> None:
@@ -227,7 +228,8 @@ class FeatureStore:
         """
         q = np.asarray(query_d, np.float32)
         q = q / max(float(np.linalg.norm(q)), 1e-12)
-        bank_scores = np.ascontiguousarray(self.bank @ q, np.float32)
+        with one_blas_thread():
+            bank_scores = np.ascontiguousarray(self.bank @ q, np.float32)
         out = np.empty(n, np.float32)
         ids, w, sq = self.point_ids, self.point_w, self.point_sq
 
@@ -246,9 +248,10 @@ class FeatureStore:
         """
         qs = np.asarray(queries_qd, np.float32).reshape(-1, self.dim)
         cols = []
-        for q in qs:  # one matrix-vector product per query, rounded as in scores()
-            q = q / max(float(np.linalg.norm(q)), 1e-12)
-            cols.append(np.ascontiguousarray(self.bank @ q, np.float32))
+        with one_blas_thread():
+            for q in qs:  # one matrix-vector product per query, rounded as in scores()
+                q = q / max(float(np.linalg.norm(q)), 1e-12)
+                cols.append(np.ascontiguousarray(self.bank @ q, np.float32))
         bank_scores = np.ascontiguousarray(np.stack(cols)) if cols else np.zeros((0, self._num_bank), np.float32)
         out = np.empty((len(qs), n), np.float32)
         ids, w, sq = self.point_ids, self.point_w, self.point_sq

@@ -252,3 +252,29 @@ def test_merged_nearest_point_follows_float32_rounding():
     c = (*none, np.array([2], np.int32), np.array([np.float32(0.5)], np.float32), np.array([0.5]))
     _association.merge_scans(*a, *c)  # strictly nearer than the kept depth: replaces it
     assert a[3][0] == 2 and a[4][0] == np.float32(0.5)
+
+
+def test_the_maps_products_run_on_one_blas_thread_and_the_count_comes_back():
+    import subprocess
+    import sys
+
+    code = (
+        "import numpy, threadpoolctl\n"
+        "import conceptfusion.map.feature_store as fs\n"
+        "def blas():\n"
+        "    return sorted({i['num_threads'] for i in threadpoolctl.threadpool_info() if i['user_api'] == 'blas'})\n"
+        "seen = []\n"
+        "class Bank(numpy.ndarray):\n"
+        "    def __matmul__(self, other):\n"
+        "        seen.append(blas()[0])\n"
+        "        return numpy.asarray(self) @ other\n"
+        "store = fs.FeatureStore(4)\n"
+        "store._bank = numpy.eye(4, dtype=numpy.float32).view(Bank)\n"
+        "store._num_bank = 4\n"
+        "store.scores(numpy.ones(4, numpy.float32), 0)\n"
+        "print(blas(), seen)\n"
+    )
+    env = {**__import__("os").environ, "OPENBLAS_NUM_THREADS": "2", "OMP_NUM_THREADS": "2"}
+    out = subprocess.run([sys.executable, "-c", code], capture_output=True, text=True, env=env)
+    assert out.returncode == 0, out.stderr
+    assert out.stdout.strip() == "[2] [1]", out.stdout
