@@ -19,6 +19,7 @@ import math
 from dataclasses import dataclass, field, replace
 
 import numpy as np
+from numba import njit
 from scipy import ndimage
 
 from planners._checks import as_bool_grid, as_float_array, positive_float
@@ -228,8 +229,9 @@ def build_occupancy_grid(
     if bounds_xy is None:
         if len(pts) == 0:
             raise PlannerInputError("points_world_n3: no points and no bounds_xy, cannot size the grid")
-        lo = pts[:, :2].min(axis=0) - config.padding
-        hi = pts[:, :2].max(axis=0) + config.padding
+        # Column by column: numpy reduces a strided (N, 2) view along axis 0 ten times slower.
+        lo = np.array([pts[:, 0].min(), pts[:, 1].min()]) - config.padding
+        hi = np.array([pts[:, 0].max(), pts[:, 1].max()]) + config.padding
     else:
         b = as_float_array("bounds_xy", bounds_xy, (4,))
         lo, hi = b[:2], b[2:]
@@ -241,21 +243,37 @@ def build_occupancy_grid(
         w, h = np.floor((hi - lo) / res).astype(np.int64) + 1
     else:
         w, h = np.maximum(np.ceil((hi - lo) / res - 1e-9).astype(np.int64), 1)
-    cols = np.floor((pts[:, 0] - lo[0]) / res).astype(np.int64)
-    rows = np.floor((pts[:, 1] - lo[1]) / res).astype(np.int64)
-    inside = (rows >= 0) & (rows < h) & (cols >= 0) & (cols < w)
-    z = pts[:, 2]
-    flat = rows * w + cols
-
-    obstacle = inside & (z >= config.obstacle_z_min) & (z < config.obstacle_z_max)
-    counts = np.bincount(flat[obstacle], minlength=h * w)
+    counts, floor = _rasterise(np.ascontiguousarray(pts), float(lo[0]), float(lo[1]), float(res), int(h), int(w),
+                               float(config.obstacle_z_min), float(config.obstacle_z_max), float(config.floor_z_max))
     occupied = (counts >= config.min_points).reshape(h, w)
-    floor = inside & (z < config.floor_z_max)
-    known = np.zeros(h * w, dtype=bool)
-    known[flat[floor]] = True
-    known = known.reshape(h, w) | occupied
+    known = floor.reshape(h, w) | occupied
     _LOG.debug("occupancy grid %dx%d at %.3f m: %d occupied, %d known", h, w, res, occupied.sum(), known.sum())
     return OccupancyGrid(origin_xy=lo, resolution=res, occupied_hw=occupied, known_hw=known)
+
+
+@njit(cache=True, nogil=True)
+def _rasterise(pts, lo_x, lo_y, res, h, w, z_min, z_max, floor_z_max):
+    """Per cell of an (h, w) grid: the obstacle-band points (``z_min <= z < z_max``) and whether
+    a floor point (``z < floor_z_max``) fell in it, in one pass; points outside are skipped.
+    A point's cell is ``floor((p - lo) / res)`` in float64, as the module docstring says.
+
+    Shape:
+        pts (N, 3) float64 -> counts (h * w,) int64, floor (h * w,) bool.
+    """
+    counts = np.zeros(h * w, np.int64)
+    floor = np.zeros(h * w, np.bool_)
+    for i in range(pts.shape[0]):
+        col = np.int64(np.floor((pts[i, 0] - lo_x) / res))
+        row = np.int64(np.floor((pts[i, 1] - lo_y) / res))
+        if row < 0 or row >= h or col < 0 or col >= w:
+            continue
+        z = pts[i, 2]
+        cell = row * w + col
+        if z >= z_min and z < z_max:
+            counts[cell] += 1
+        if z < floor_z_max:
+            floor[cell] = True
+    return counts, floor
 
 
 def free_components(free_hw: np.ndarray) -> tuple[np.ndarray, int]:
