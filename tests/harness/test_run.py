@@ -36,7 +36,8 @@ def test_regression_suites_meet_their_floors(tmp_path):
     the embedded one, each is scored, and none falls below its calibrated floor or rises above
     its ceiling (:mod:`harness.runner.floors`)."""
     suites = ("regression-rearrange", "regression-rearrange-embedded", "regression-search")
-    records = run_suites(RunConfig(suites=suites, backend="process", workers=2), tmp_path, progress=False)
+    # No recordings: the gate checks floors (recordings have their own tests, test_replay.py).
+    records = run_suites(RunConfig(suites=suites, backend="process", workers=2, record="none"), tmp_path, progress=False)
     expected = sum(sum(get_suite(s).agent_limits.values()) for s in suites)
     assert len(records) == expected
     assert all(r["status"] == "ok" for r in records), [r["error"] for r in records if r["status"] != "ok"]
