@@ -80,11 +80,13 @@ def cmd_run(args: argparse.Namespace) -> int:
         settled = fail_fast_stop(plan.jobs, suites, agents=config.agents, floor_as=floor_as,
                                  done=load_results(plan.results))
 
-        def stop(rec: dict) -> bool:
+        def settle(rec: dict) -> bool:
             if settled(rec):
                 stopped.append(rec)
                 return True
             return False
+
+        stop = settle
     try:
         records = plan.execute(stop=stop)
     except (ValueError, FileExistsError, FileNotFoundError, RayUnavailableError) as exc:
