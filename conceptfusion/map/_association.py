@@ -18,12 +18,13 @@ from __future__ import annotations
 import numpy as np
 from numba import njit
 
-from conceptfusion.map._threads import map_ranges
+from conceptfusion.map._threads import map_ranges, run_ranges
 
 __all__ = ["associate"]
 
 _PROJECT_BLOCK = 2048
 _THREAD_CHUNK = 1 << 16  # fewest points per thread
+_COVER_CHUNK = 1 << 13  # fewest pixels per thread in the coverage check
 
 
 def associate(geo, n, world_to_cam, K, valid_pix, obs, dist_th2, cos_th, h, w):
@@ -47,7 +48,14 @@ def associate(geo, n, world_to_cam, K, valid_pix, obs, dist_th2, cos_th, h, w):
     for part in parts[1:]:
         merge_scans(*acc, *part)
     best_pt, _, _, near_pt, _, _ = acc
-    return finish(geo, n, best_pt, near_pt, valid_pix, obs, dist_th2, cos_th, h, w)
+    covered = np.zeros(obs.shape[0], np.bool_)
+    run_ranges(  # each pixel's flag on its own: any split gives the same flags
+        lambda start, stop: cover(geo, best_pt, near_pt, valid_pix, obs, dist_th2, cos_th, h, w, start, stop, covered),
+        obs.shape[0],
+        min_chunk=_COVER_CHUNK,
+    )
+    pts, pixels = matches_in_point_order(n, best_pt)
+    return pts, pixels, covered
 
 
 @njit(cache=True, nogil=True)
@@ -183,14 +191,11 @@ def merge_scans(best_pt, best_conf, best_d2, near_pt, near_z, near_min,
 
 
 @njit(cache=True, nogil=True)
-def finish(geo, n, best_pt, near_pt, valid_pix, obs, dist_th2, cos_th, h, w):
-    """Matches ordered by point and the covered flags of the unmatched pixels (see module)."""
-    num_valid = obs.shape[0]
-    covered = np.zeros(num_valid, np.bool_)
-    m = 0
-    for j in range(num_valid):
+def cover(geo, best_pt, near_pt, valid_pix, obs, dist_th2, cos_th, h, w, start, stop, covered):
+    """The covered flags (see module) of the unmatched valid pixels ``start:stop``, written into
+    ``covered`` (matched pixels are left as they are)."""
+    for j in range(start, stop):
         if best_pt[j] >= 0:
-            m += 1
             continue
         qv = valid_pix[j] // w
         qu = valid_pix[j] - qv * w
@@ -208,8 +213,17 @@ def finish(geo, n, best_pt, near_pt, valid_pix, obs, dist_th2, cos_th, h, w):
                     break
             if covered[j]:
                 break
-    # Matches in point order (each point wins at most one pixel), so that merging walks the
-    # point arrays forwards instead of jumping around them.
+
+
+@njit(cache=True, nogil=True)
+def matches_in_point_order(n, best_pt):
+    """``(points, pixels)`` of the matches in point order (each point wins at most one pixel),
+    so that merging walks the point arrays forwards instead of jumping around them."""
+    num_valid = best_pt.shape[0]
+    m = 0
+    for j in range(num_valid):
+        if best_pt[j] >= 0:
+            m += 1
     match = np.full(n, -1, np.int32)
     for j in range(num_valid):
         if best_pt[j] >= 0:
@@ -222,4 +236,4 @@ def finish(geo, n, best_pt, near_pt, valid_pix, obs, dist_th2, cos_th, h, w):
             pts[i] = k
             pixels[i] = match[k]
             i += 1
-    return pts, pixels, covered
+    return pts, pixels

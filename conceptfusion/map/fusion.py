@@ -27,6 +27,7 @@ import numpy as np
 
 from conceptfusion.map import _kernels
 from conceptfusion.map._association import associate
+from conceptfusion.map._threads import run_ranges
 from conceptfusion._checks import as_array, as_float_array
 from conceptfusion.cameras import check_intrinsics, check_pose, radial_confidence
 from conceptfusion.errors import DtypeError, ShapeError
@@ -84,6 +85,7 @@ class IntegrationStats:
 
 
 _GEO_COLS = 10
+_MERGE_CHUNK = 1 << 13  # fewest matched points per thread in the geometry merge
 _LARGE_PALETTE = 4096  # distinct features in one frame beyond which integrate() warns about the bank
 _POS, _NRM, _RGB, _CONF = slice(0, 3), slice(3, 6), slice(6, 9), 9
 
@@ -335,7 +337,10 @@ class PointFusionMap:
         )
 
     def _merge(self, pts, sel, obs, alpha, bank) -> None:
-        _kernels.merge_geometry(self._geo, pts, sel, obs, alpha)
+        geo = self._geo
+        run_ranges(  # each matched point is a distinct row: any split gives the same rows
+            lambda a, b: _kernels.merge_geometry(geo, pts[a:b], sel[a:b], obs, alpha), len(pts), min_chunk=_MERGE_CHUNK
+        )
         self._store.add_observations(pts, bank[sel], alpha[sel])
 
     def _append(self, obs, alpha, bank) -> None:

@@ -9,6 +9,7 @@ import pytest
 from conceptfusion.cameras import intrinsics_from_fovy
 from conceptfusion.errors import DtypeError, ShapeError
 from conceptfusion.map import _association, dense, feature_store
+from conceptfusion.map import fusion as fusion_module
 from conceptfusion.map._rowhash import hash_weights
 from conceptfusion.map._threads import run_ranges
 from conceptfusion.map.dense import palette_from_dense
@@ -229,6 +230,8 @@ def test_association_split_over_threads_is_the_same(monkeypatch):
     rgb, depth, pose, pf = frames[2]
     one = _fuse(frames[:2], lambda pf: pf)
     monkeypatch.setattr(_association, "_THREAD_CHUNK", 50)
+    monkeypatch.setattr(_association, "_COVER_CHUNK", 37)  # the coverage check split too
+    monkeypatch.setattr(fusion_module, "_MERGE_CHUNK", 29)  # and the geometry merge
     monkeypatch.setattr("numba.config.NUMBA_NUM_THREADS", 9)
     stats = fmap.integrate(rgb, depth, K, pose, pf)
     monkeypatch.setattr("numba.config.NUMBA_NUM_THREADS", 1)
