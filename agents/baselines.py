@@ -19,7 +19,7 @@ import numpy as np
 from agents.concept_map import ConceptMapper, privileged_labels
 from agents.navigator import search_action
 from agents.pusher import push_action
-from conceptfusion.cameras import backproject, transform_points
+from conceptfusion.cameras import world_points
 
 __all__ = ["RandomPusher", "RandomWalker", "FrameSearcher"]
 
@@ -94,10 +94,7 @@ class FrameSearcher:
         self._turn_sign = 1.0
 
     def _obstacles(self, observation) -> np.ndarray:
-        depth = np.asarray(observation["depth"], np.float32)
-        cam = backproject(depth, np.asarray(observation["K"]), max_depth=4.0).reshape(-1, 3)
-        cam = cam[np.isfinite(cam).all(axis=1)]
-        pts = transform_points(np.asarray(observation["cam_to_world"], np.float64), cam.astype(np.float64))
+        pts = world_points(observation["depth"], observation["K"], observation["cam_to_world"], max_depth=4.0)
         return pts[(pts[:, 2] > 0.08) & (pts[:, 2] < 1.6)]
 
     def _clear_ahead(self, pose, obstacles, length: float = 0.6) -> bool:

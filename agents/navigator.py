@@ -29,7 +29,7 @@ from scipy import ndimage
 
 from agents.concept_map import ConceptMapper, privileged_labels
 from agents.frontier import choose_frontier, find_frontiers
-from conceptfusion.cameras import backproject, transform_points
+from conceptfusion.cameras import world_points
 from planners.occupancy import GridConfig, build_occupancy_grid, nearest_free_cell, reachable_goal_near
 from planners.ompl_2d import BasePlannerConfig, plan_base_path
 from planners.replan import check_path_blocked
@@ -201,14 +201,8 @@ class MapNavigator:
     def _see_close(self, observation) -> None:
         """Add the space this frame shows within ``explore_range`` to the close-range set."""
         c = self.config
-        depth = np.asarray(observation["depth"], np.float32)[::_CLOSE_STRIDE, ::_CLOSE_STRIDE]
-        K = np.asarray(observation["K"], np.float64).copy()
-        K[:2] /= _CLOSE_STRIDE  # sample (r, c) is pixel (stride r, stride c)
-        cam = backproject(depth, K, max_depth=c.explore_range).reshape(-1, 3)
-        cam = cam[np.isfinite(cam).all(axis=1)]
-        if len(cam) == 0:
-            return
-        xy = transform_points(np.asarray(observation["cam_to_world"], np.float64), cam.astype(np.float64))[:, :2]
+        xy = world_points(observation["depth"], observation["K"], observation["cam_to_world"],
+                          max_depth=c.explore_range, stride=_CLOSE_STRIDE)[:, :2]
         step = c.grid.resolution / 2
         ij = np.floor(xy / step).astype(np.int64)
         keys = (ij[:, 0] << 32) + (ij[:, 1] & 0xFFFFFFFF)

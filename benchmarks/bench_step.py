@@ -115,6 +115,7 @@ def run(task: str, agent_name: str, encoder: str, episodes: int, options: dict |
     """Roll the first ``episodes`` episodes of the shipped ``world`` suite of ``task`` with a timed
     agent (``options``: extra agent options, e.g. ``{"keyframe_move": 0.3}``)."""
     from agents.registry import make_agent
+    from harness.runner.tasks import env_kwargs_for
     from sim_envs.envs.object_search import ObjectSearchEnv
     from sim_envs.envs.tabletop_rearrange import TabletopRearrangeEnv
     from sim_envs.scenes.episodes import SCENES_ROOT, load_episodes
@@ -122,19 +123,18 @@ def run(task: str, agent_name: str, encoder: str, episodes: int, options: dict |
     folder, name = EPISODE_FILES[(task, world)]
     eps = load_episodes(SCENES_ROOT / folder / name).episodes[:episodes]
     agent = make_agent(agent_name, encoder=encoder, **(options or {}))
-    # As the harness builds them (harness.runner.tasks): the ground-truth segmentation pass only
-    # for a privileged agent, the orbit scan only for an agent that reads it.
-    seg = bool(getattr(agent, "privileged", False))
+    # As the harness builds them: the ground-truth segmentation pass only for a privileged
+    # agent, the orbit scan only for an agent that reads it.
     if task == "search":
-        env = ObjectSearchEnv(width=160, height=120, segmentation=seg)
+        env = ObjectSearchEnv(**env_kwargs_for("object_search", {"width": 160, "height": 120}, agent))
     else:
-        env = TabletopRearrangeEnv(width=160, height=120, scan_frames=8 if getattr(agent, "reads_scan", True) else 0, segmentation=seg)
+        env = TabletopRearrangeEnv(**env_kwargs_for("tabletop_rearrange", {"width": 160, "height": 120, "scan_frames": 8}, agent))
     timer = ExclusiveTimer()
     steps, walls, successes = 0, [], 0
     with ExitStack() as stack:
-        from threadpoolctl import threadpool_limits
+        from harness.runner.backends import one_blas_thread
 
-        stack.enter_context(threadpool_limits(limits=1, user_api="blas"))  # as every harness job runs
+        stack.enter_context(one_blas_thread())  # as every harness job runs
         for p in _patches(timer, agent):
             stack.enter_context(p)
         env_step = timer.wrap("render", env.step)

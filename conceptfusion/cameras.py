@@ -21,6 +21,7 @@ __all__ = [
     "check_pose",
     "valid_depth_mask",
     "backproject",
+    "world_points",
     "normal_map",
     "transform_points",
     "transform_directions",
@@ -150,6 +151,22 @@ def transform_points(T_44: np.ndarray, points_n3: np.ndarray) -> np.ndarray:
     """
     T = np.asarray(T_44)
     return (points_n3 @ T[:3, :3].T.astype(points_n3.dtype) + T[:3, 3].astype(points_n3.dtype))
+
+
+def world_points(depth_hw: np.ndarray, K_33, cam_to_world_44, *, max_depth: float = math.inf, stride: int = 1) -> np.ndarray:
+    """World points of a posed depth image's valid pixels (every ``stride``-th row and column).
+
+    Invalid depth (see :func:`backproject`) gives no point; the transform is done in float64.
+
+    Shape:
+        ``depth_hw`` (H, W), ``K_33`` (3, 3), ``cam_to_world_44`` (4, 4) -> (N, 3) float64,
+        N <= ceil(H / stride) * ceil(W / stride).
+    """
+    K = np.asarray(K_33, np.float64).copy()
+    K[:2] /= stride  # sample (r, c) is pixel (stride r, stride c)
+    cam = backproject(np.asarray(depth_hw)[::stride, ::stride], K, max_depth=max_depth).reshape(-1, 3)
+    cam = cam[np.isfinite(cam).all(axis=1)]
+    return transform_points(np.asarray(cam_to_world_44, np.float64), cam.astype(np.float64))
 
 
 def transform_directions(T_44: np.ndarray, dirs_n3: np.ndarray) -> np.ndarray:

@@ -52,7 +52,7 @@ from conceptfusion.errors import ConceptFusionError, HarnessError
 from conceptfusion.names import did_you_mean
 from harness.runner.jobs import WORKER_THREADS_ENV, Job, JobTimeout
 
-__all__ = ["BACKENDS", "run_jobs", "check_backend", "parse_ray_address", "RayUnavailableError", "expected_seconds", "longest_first"]
+__all__ = ["BACKENDS", "run_jobs", "one_blas_thread", "check_backend", "parse_ray_address", "RayUnavailableError", "expected_seconds", "longest_first"]
 
 BACKENDS = ("process", "serial", "ray")
 
@@ -86,13 +86,11 @@ def longest_first(jobs: list[Job]) -> list[int]:
 def _run_job(job: Job) -> list[dict]:
     """What a worker runs for a job (module level, so that Ray ships it by reference); a
     ``SystemExit`` inside the job becomes its ``failed`` record. numpy's BLAS runs on one thread
-    during the job (see :func:`limit_numpy_blas`; restored afterwards, for the serial backend's
+    during the job (:func:`one_blas_thread`; restored afterwards, for the serial backend's
     caller)."""
-    from threadpoolctl import threadpool_limits
-
     t0 = time.monotonic()
     try:
-        with threadpool_limits(limits=1, user_api="blas"):
+        with one_blas_thread():
             return job.run()
     except SystemExit as exc:
         return [job.failure_record("failed", f"SystemExit: the job called sys.exit({exc.code!r}); recorded as failed",
@@ -162,23 +160,24 @@ def _die_with_parent(parent_pid: int) -> None:
         threading.Thread(target=_watch_parent, args=(parent_pid,), name="cf-watch-parent", daemon=True).start()
 
 
-def limit_numpy_blas(threads: int) -> list[str]:
-    """Limit the BLAS libraries loaded so far (numpy's and scipy's; torch is not imported yet in
-    a fresh worker) to ``threads`` threads; returns the libraries limited.
+def one_blas_thread():
+    """A context in which the BLAS libraries loaded so far (numpy's and scipy's) run on one
+    thread, restored on exit; every job runs in one (:func:`_run_job`). It looks the libraries
+    up afresh each time, so those an earlier job loaded count too (the map's own
+    :func:`conceptfusion.map._threads.one_blas_thread` keeps the set it found first, for the
+    per-frame cost).
 
-    A worker of a full pool has one core. numpy's OpenBLAS otherwise keeps a thread per core that
-    spins after each matrix product, burning the CPU the next render or proposal pass needs:
-    measured on a search step, 78 ms of CPU with it and 46 ms without, for the same wall time
-    alone and the same results (its products split rows, not sums, across threads). Alone on
-    the machine one thread is faster too: the spinning threads hold the core onnxruntime's
-    second thread wants (a v2 search step: 33-35 ms wall and 58-63 ms CPU with two BLAS threads,
-    29 ms and 34 ms with one), so every job runs with one (:func:`_run_job`).
+    numpy's OpenBLAS otherwise keeps a thread per core that spins after each matrix product,
+    burning the CPU the next render or proposal pass needs: in a worker of a full pool (one core
+    each), a search step took 78 ms of CPU with it and 46 ms without, for the same wall time.
+    Alone on the machine one thread is faster too: the spinning threads hold the core
+    onnxruntime's second thread wants (a v2 search step: 33-35 ms wall and 58-63 ms CPU with two
+    BLAS threads, 29 ms and 34 ms with one). The results are the same (its products split rows,
+    not sums, across threads).
     """
-    from threadpoolctl import threadpool_info, threadpool_limits
+    from threadpoolctl import threadpool_limits
 
-    blas = [i["filepath"] for i in threadpool_info() if i.get("user_api") == "blas"]
-    threadpool_limits(limits=int(threads), user_api="blas")
-    return blas
+    return threadpool_limits(limits=1, user_api="blas")
 
 
 def _worker_main(inbox, outbox, threads: int, parent_pid: int) -> None:
@@ -187,7 +186,6 @@ def _worker_main(inbox, outbox, threads: int, parent_pid: int) -> None:
     _die_with_parent(parent_pid)
     signal.signal(signal.SIGINT, signal.SIG_IGN)  # the parent handles Ctrl-C
     os.environ[WORKER_THREADS_ENV] = str(threads)
-    limit_numpy_blas(threads)
     while True:
         item = inbox.get()
         if item is None:

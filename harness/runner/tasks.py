@@ -29,7 +29,8 @@ from harness.runner.jobs import import_plugins, job_record
 from harness.runner.results import agent_label
 from sim_envs.scenes.episodes import Episode
 
-__all__ = ["EpisodeJob", "EXPECTED_EPISODE_S", "run_episode", "episode_seed", "episode_recorder", "TASK_RUNNERS", "close_cached_envs"]
+__all__ = ["EpisodeJob", "EXPECTED_EPISODE_S", "run_episode", "episode_seed", "episode_recorder", "TASK_RUNNERS", "close_cached_envs",
+           "env_kwargs_for"]
 
 
 EXPECTED_EPISODE_S: dict[tuple[str, str | None], float] = {
@@ -119,15 +120,16 @@ def close_cached_envs() -> None:
     _ENV_CACHE.clear()
 
 
-def _env_kwargs(job: EpisodeJob, agent) -> dict:
-    """The job's environment settings, with the ground-truth segmentation rendered only for a
+def env_kwargs_for(task: str, env_kwargs: dict, agent) -> dict:
+    """A suite's environment settings for ``task`` as an ``agent`` gets them, with the
+    ground-truth segmentation rendered only for a
     privileged agent: the others never see ``info``, and skipping its render pass saves a third
     of a tabletop episode's rendering without changing any observation. A tabletop agent that
     says it never reads the orbit scan (``reads_scan`` False: the single-frame and random pushers,
     the oracle) gets no scan either: rendering it costs a fifth of such an episode, and nothing
     it reads changes. Agents without the attribute get everything the suite sets."""
-    kwargs = {"segmentation": bool(getattr(agent, "privileged", False)), **job.env_kwargs}
-    if job.task == "tabletop_rearrange" and kwargs.get("scan_frames") and getattr(agent, "reads_scan", True) is False:
+    kwargs = {"segmentation": bool(getattr(agent, "privileged", False)), **env_kwargs}
+    if task == "tabletop_rearrange" and kwargs.get("scan_frames") and getattr(agent, "reads_scan", True) is False:
         kwargs["scan_frames"] = 0
     return kwargs
 
@@ -185,7 +187,7 @@ def _description(job: EpisodeJob) -> dict:
 
 
 def _run_search(job: EpisodeJob, agent, recorder: EpisodeRecorder | None = None) -> tuple[dict, dict, str | None, dict]:
-    kwargs = _env_kwargs(job, agent)
+    kwargs = env_kwargs_for(job.task, job.env_kwargs, agent)
     env = _cached_env(("object_search", tuple(sorted(kwargs.items()))), lambda: _search_env(kwargs))
     path: list[list[float]] = []
     info, steps, timings = _rollout(env, agent, job, on_step=lambda o, i: path.append([round(float(v), 3) for v in o["base_pose"][:2]]),
@@ -206,7 +208,7 @@ def _run_search(job: EpisodeJob, agent, recorder: EpisodeRecorder | None = None)
 
 
 def _run_rearrange(job: EpisodeJob, agent, recorder: EpisodeRecorder | None = None) -> tuple[dict, dict, str | None, dict]:
-    kwargs = _env_kwargs(job, agent)
+    kwargs = env_kwargs_for(job.task, job.env_kwargs, agent)
     env = _cached_env(("tabletop_rearrange", tuple(sorted(kwargs.items()))), lambda: _rearrange_env(kwargs))
     info, steps, timings = _rollout(env, agent, job, recorder=recorder)
     ev = info.get("evaluation", {})

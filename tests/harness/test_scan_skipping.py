@@ -23,7 +23,7 @@ def test_only_agents_that_read_the_scan_get_one(agent, reads):
     assert job.env_kwargs["scan_frames"] == 6
     built = make_agent(job.agent, **job.agent_kwargs)
     assert getattr(built, "reads_scan", True) is reads
-    assert tasks._env_kwargs(job, built)["scan_frames"] == (6 if reads else 0)
+    assert tasks.env_kwargs_for(job.task, job.env_kwargs, built)["scan_frames"] == (6 if reads else 0)
 
 
 def test_an_agent_without_the_attribute_keeps_the_scan():
@@ -31,7 +31,7 @@ def test_an_agent_without_the_attribute_keeps_the_scan():
         privileged = False
 
     job = _jobs("random-pusher", 1)[0]
-    assert tasks._env_kwargs(job, Plain())["scan_frames"] == 6
+    assert tasks.env_kwargs_for(job.task, job.env_kwargs, Plain())["scan_frames"] == 6
 
 
 @pytest.mark.parametrize("agent", ["frame-pusher", "oracle-pusher"])
@@ -43,7 +43,7 @@ def test_leaving_the_scan_out_changes_no_record(agent, monkeypatch):
         without = [outcome(run_episode(j)) for j in _jobs(agent)]
         close_cached_envs()
         # the same episodes with the scan rendered, as before agents could decline it
-        monkeypatch.setattr(tasks, "_env_kwargs", lambda job, a: {"segmentation": bool(a.privileged), **job.env_kwargs})
+        monkeypatch.setattr(tasks, "env_kwargs_for", lambda task, kwargs, a: {"segmentation": bool(a.privileged), **kwargs})
         with_scan = [outcome(run_episode(j)) for j in _jobs(agent)]
     finally:
         close_cached_envs()

@@ -29,21 +29,6 @@ def test_search_episodes_of_map_agents_start_before_short_jobs():
     assert all(expected_seconds(j) > 0 for j in jobs)
 
 
-def test_a_worker_limits_numpys_blas_to_its_share_of_the_cores():
-    import subprocess
-    import sys
-
-    code = (
-        "import numpy, threadpoolctl\n"
-        "from harness.runner.backends import limit_numpy_blas\n"
-        "limited = limit_numpy_blas(1)\n"
-        "blas = [i for i in threadpoolctl.threadpool_info() if i['user_api'] == 'blas']\n"
-        "print(len(limited), sorted({i['num_threads'] for i in blas}))\n"
-    )
-    out = subprocess.run([sys.executable, "-c", code], capture_output=True, text=True, check=True).stdout.split(maxsplit=1)
-    assert int(out[0]) >= 1 and out[1].strip() == "[1]"
-
-
 def test_every_job_runs_with_one_blas_thread_and_the_callers_count_comes_back():
     import subprocess
     import sys
