@@ -1,5 +1,5 @@
-"""Calibration data of the v2 search agents (``scenes/calibration-v2/``): apartments and episodes
-to develop and choose agent settings on, never to report.
+"""Calibration data of the v2 agents (``scenes/calibration-v2/``): apartments, tables and episodes
+to develop and choose agent settings (and perception) on, never to report.
 
 - ``calibration-v2/household-v2-<seed>.json``: :data:`NUM_APARTMENTS` library apartments
   (:func:`~sim_envs.scenes.gen_household_v2.generate_household_v2`) on ``calibration`` seeds
@@ -7,7 +7,12 @@ to develop and choose agent settings on, never to report.
   table floor 0-11), so they hold TRAIN and VAL instances, no TEST one;
 - ``calibration-v2/search-episodes-v2.jsonl``: 6 object-search episodes per apartment, drawn as
   the shipped ``search-v2`` ones (goals named in turn by name, synonym, attribute, function),
-  from another generator seed.
+  from another generator seed;
+- ``calibration-v2/tabletop-v2-<seed>.json`` and ``calibration-v2/rearrange-episodes-v2.jsonl``:
+  :data:`NUM_TABLE_EPISODES` rearrangement episodes drawn as the shipped ``rearrange-v2`` ones
+  (:func:`~sim_envs.scenes.tabletop_v2_episodes.generate_tabletop_v2_episodes`, one table each,
+  pushes checked against the PyBullet Panda's reach) on ``calibration`` seeds from index
+  :data:`TABLE_SEED_OFFSET` on, so TRAIN and VAL instances only.
 
 No suite runs them (their seeds are not evaluation seeds; ``tests/harness/test_suite_scenes.py``).
 
@@ -29,7 +34,8 @@ from sim_envs.scenes.search_episodes import generate_search_episodes
 from sim_envs.scenes.search_episodes_v2 import PER_SCENE, V2_DESCRIPTION_KINDS
 from sim_envs.scenes.splits import splits
 
-__all__ = ["FOLDER", "SEARCH_FILE", "NUM_APARTMENTS", "SEED_OFFSET", "GENERATOR_SEED", "apartment_seeds", "build_files", "main"]
+__all__ = ["FOLDER", "SEARCH_FILE", "REARRANGE_FILE", "NUM_APARTMENTS", "SEED_OFFSET", "GENERATOR_SEED", "NUM_TABLE_EPISODES",
+           "TABLE_SEED_OFFSET", "TABLE_GENERATOR_SEED", "apartment_seeds", "table_seeds", "build_files", "main"]
 
 FOLDER = "calibration-v2"
 """Folder under ``scenes/`` of the v2 calibration data."""
@@ -38,6 +44,13 @@ NUM_APARTMENTS = 10
 SEED_OFFSET = 200
 """Index of the first apartment seed among the ``calibration`` seeds."""
 GENERATOR_SEED = 7102
+REARRANGE_FILE = f"{FOLDER}/rearrange-episodes-v2.jsonl"
+NUM_TABLE_EPISODES = 80
+TABLE_SEED_OFFSET = 300
+"""Index of the first table seed among the ``calibration`` seeds (apartments above use 200-209)."""
+TABLE_SEEDS = 1500
+"""Calibration seeds the table episodes may draw from (a table with no reachable target is skipped)."""
+TABLE_GENERATOR_SEED = 7103
 
 
 def apartment_seeds() -> list[int]:
@@ -45,8 +58,31 @@ def apartment_seeds() -> list[int]:
     return splits().seeds_of("calibration", SEED_OFFSET + NUM_APARTMENTS)[SEED_OFFSET:]
 
 
+def table_seeds() -> list[int]:
+    """Seeds the calibration tables are drawn from: ``calibration`` seeds ``TABLE_SEED_OFFSET ..``
+    ``TABLE_SEED_OFFSET + TABLE_SEEDS - 1``."""
+    return splits().seeds_of("calibration", TABLE_SEED_OFFSET + TABLE_SEEDS)[TABLE_SEED_OFFSET:]
+
+
+def _table_files() -> dict[str, str]:
+    from sim_envs.pybullet.reach import PandaReach
+    from sim_envs.scenes.gen_tabletop_v2 import TABLE
+    from sim_envs.scenes.tabletop_v2_episodes import generate_tabletop_v2_episodes
+
+    reach = PandaReach(TABLE)
+    try:
+        episodes, scenes = generate_tabletop_v2_episodes(TABLE_GENERATOR_SEED, NUM_TABLE_EPISODES, table_seeds(),
+                                                         reach=reach.reachable, scene_dir=FOLDER, id_prefix="rearrange-v2-cal")
+    finally:
+        reach.close()
+    files = {REARRANGE_FILE: episodes_text(episodes)}
+    for scene in scenes:
+        files[f"{FOLDER}/{scene.id}.json"] = json.dumps(scene.to_json(), indent=1)
+    return files
+
+
 def build_files() -> dict[str, str]:
-    """Relative path under ``scenes/`` -> file text: every apartment and the episode file."""
+    """Relative path under ``scenes/`` -> file text: every apartment and table, and the episode files."""
     files = {}
     with tempfile.TemporaryDirectory() as tmp:  # the episode generator reads scene files
         root = Path(tmp)
@@ -61,6 +97,7 @@ def build_files() -> dict[str, str]:
         eps = generate_search_episodes(paths, per_scene=PER_SCENE, generator_seed=GENERATOR_SEED, scenes_root=root,
                                        description_kinds=V2_DESCRIPTION_KINDS, id_prefix="search-v2-cal")
     files[SEARCH_FILE] = episodes_text(eps)
+    files.update(_table_files())
     return files
 
 
