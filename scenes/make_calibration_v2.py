@@ -35,7 +35,8 @@ from sim_envs.scenes.search_episodes_v2 import PER_SCENE, V2_DESCRIPTION_KINDS
 from sim_envs.scenes.splits import splits
 
 __all__ = ["FOLDER", "SEARCH_FILE", "REARRANGE_FILE", "NUM_APARTMENTS", "SEED_OFFSET", "GENERATOR_SEED", "NUM_TABLE_EPISODES",
-           "TABLE_SEED_OFFSET", "TABLE_GENERATOR_SEED", "apartment_seeds", "table_seeds", "build_files", "main"]
+           "TABLE_SEED_OFFSET", "TABLE_GENERATOR_SEED", "apartment_seeds", "table_seeds", "search_files", "table_files", "build_files",
+           "main"]
 
 FOLDER = "calibration-v2"
 """Folder under ``scenes/`` of the v2 calibration data."""
@@ -64,14 +65,16 @@ def table_seeds() -> list[int]:
     return splits().seeds_of("calibration", TABLE_SEED_OFFSET + TABLE_SEEDS)[TABLE_SEED_OFFSET:]
 
 
-def _table_files() -> dict[str, str]:
+def table_files(count: int = NUM_TABLE_EPISODES) -> dict[str, str]:
+    """Relative path under ``scenes/`` -> file text: the first ``count`` table episodes (the same
+    first episodes whatever ``count``: the generator draws them in order) and their tables."""
     from sim_envs.pybullet.reach import PandaReach
     from sim_envs.scenes.gen_tabletop_v2 import TABLE
     from sim_envs.scenes.tabletop_v2_episodes import generate_tabletop_v2_episodes
 
     reach = PandaReach(TABLE)
     try:
-        episodes, scenes = generate_tabletop_v2_episodes(TABLE_GENERATOR_SEED, NUM_TABLE_EPISODES, table_seeds(),
+        episodes, scenes = generate_tabletop_v2_episodes(TABLE_GENERATOR_SEED, count, table_seeds(),
                                                          reach=reach.reachable, scene_dir=FOLDER, id_prefix="rearrange-v2-cal")
     finally:
         reach.close()
@@ -81,8 +84,8 @@ def _table_files() -> dict[str, str]:
     return files
 
 
-def build_files() -> dict[str, str]:
-    """Relative path under ``scenes/`` -> file text: every apartment and table, and the episode files."""
+def search_files() -> dict[str, str]:
+    """Relative path under ``scenes/`` -> file text: every apartment and the search episode file."""
     files = {}
     with tempfile.TemporaryDirectory() as tmp:  # the episode generator reads scene files
         root = Path(tmp)
@@ -97,8 +100,12 @@ def build_files() -> dict[str, str]:
         eps = generate_search_episodes(paths, per_scene=PER_SCENE, generator_seed=GENERATOR_SEED, scenes_root=root,
                                        description_kinds=V2_DESCRIPTION_KINDS, id_prefix="search-v2-cal")
     files[SEARCH_FILE] = episodes_text(eps)
-    files.update(_table_files())
     return files
+
+
+def build_files() -> dict[str, str]:
+    """Relative path under ``scenes/`` -> file text: every apartment and table, and both episode files."""
+    return {**search_files(), **table_files()}
 
 
 def main(argv: list[str] | None = None) -> int:

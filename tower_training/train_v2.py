@@ -35,7 +35,7 @@ from tower_training.world_v2 import (
     ROOM_TEST, DataConfigV2, RoomDataConfig, render_crop_data_v2, render_room_crop_data, split_summary, train_caption_bank,
 )
 
-__all__ = ["CAPTION_WEIGHTS", "tower_metrics", "main"]
+__all__ = ["CAPTION_WEIGHTS", "tower_metrics", "init_record", "main"]
 
 logger = logging.getLogger(__name__)
 
@@ -56,6 +56,29 @@ def tower_metrics(embed_fn, text_encoder, data: CropData, room_test: CropData, s
     rooms = evaluate_crops_v2(embed_fn, text_encoder, room_test, split, {"val": [], "test": ROOM_TEST.scene_seeds(split)})
     out.update({f"room_test/{k}": v for k, v in rooms.items() if not k.startswith(("val_", "background"))})
     return out
+
+
+def init_record(tower_dir: Path) -> dict:
+    """What a run started from (``--init``): the folder, the SHA-256 of its ``tower.onnx``, and
+    from its ``tower.json`` the world it was trained on, its command and its own start, so a
+    chain of runs (v1 -> v2 -> ...) stays traceable after the folder's weights are replaced."""
+    import hashlib
+    import json
+
+    onnx = tower_dir / "tower.onnx"
+    if not onnx.is_file():
+        raise SystemExit(f"--init: expected an exported tower folder holding tower.onnx, got {tower_dir}")
+    meta_file = tower_dir / "tower.json"
+    meta = json.loads(meta_file.read_text()) if meta_file.is_file() else {}
+    world = meta.get("world", "v1")
+    return {
+        "tower_dir": str(tower_dir),
+        "onnx_sha256": hashlib.sha256(onnx.read_bytes()).hexdigest(),
+        "world": ("v1 (7 kinds x 10 colours; no library instance, category or split seed)" if world == "v1"
+                  else f"{world} (the object library's train split)"),
+        "command": meta.get("command"),
+        "init": meta.get("init"),
+    }
 
 
 def _evaluate_only(tower_dir: Path, data: CropData, room_test: CropData, split, data_cfg: DataConfigV2) -> int:
@@ -192,8 +215,7 @@ def main(argv: list[str] | None = None) -> int:
         "data_minutes": round(t_data / 60, 2),
         "train_minutes": round(t_train / 60, 2),
         "torch_threads": int(torch.get_num_threads()),
-        "init": None if args.init is None else {"tower_dir": str(args.init), "world": "v1 (7 kinds x 10 colours; no library "
-                                                "instance, category or split seed)"},
+        "init": None if args.init is None else init_record(Path(args.init)),
         "command": "python -m tower_training.train " + " ".join(argv),
     }
     return export_checked(model, tower_cfg, args.out, meta, text, data.images[: min(32, len(data))])

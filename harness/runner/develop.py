@@ -2,7 +2,7 @@
 
 An agent's settings (a rule, a threshold, an option's default) are chosen on episodes that no
 evaluation suite runs: the calibration episodes drawn like the suite's own
-(:data:`DEVELOPMENT_EPISODES`; ``scenes/calibration-v2/`` for ``search-v2``). This runs a suite's
+(:data:`DEVELOPMENT_EPISODES`; ``scenes/calibration-v2/`` for ``search-v2`` and ``rearrange-v2``). This runs a suite's
 agents over them with the suite's environment settings and default perception, appending one
 record per episode to ``OUT/results.jsonl`` (an interrupted run resumes there), and prints each
 agent's success::
@@ -31,6 +31,7 @@ __all__ = ["DEVELOPMENT_EPISODES", "development_suite", "develop", "main"]
 
 DEVELOPMENT_EPISODES: dict[str, str] = {
     "search-v2": "calibration-v2/search-episodes-v2.jsonl",
+    "rearrange-v2": "calibration-v2/rearrange-episodes-v2.jsonl",
 }
 """Suite -> its development episodes (relative to ``scenes/``): same generators as the suite's
 episodes, calibration seeds only."""

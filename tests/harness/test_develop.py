@@ -24,7 +24,7 @@ def test_development_episodes_are_calibration_seeds_and_no_suite_runs_them(name)
 
 def test_unknown_development_suite_is_refused_naming_the_known_ones():
     with pytest.raises(HarnessError, match="search-v2"):
-        development_suite("rearrange")
+        development_suite("rearrange")  # v1: none
 
 
 def test_develop_runs_resumes_and_summarises(tmp_path, capsys):

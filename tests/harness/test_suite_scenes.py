@@ -89,11 +89,11 @@ def test_the_default_comparison_is_the_v2_world():
 
 
 def test_v2_calibration_search_data_regenerates_and_stays_out_of_every_suite():
-    from scenes.make_calibration_v2 import FOLDER, SEARCH_FILE, build_files
+    from scenes.make_calibration_v2 import FOLDER, SEARCH_FILE, search_files
     from scenes.shipped import ROOT
     from tower_training.room_floor import RoomFloorConfig, room_floor_seeds
 
-    files = build_files()
+    files = search_files()
     assert len(files) == 1 + 10 and all((ROOT / rel).read_text() == text for rel, text in files.items())
     eps = load_episodes(ROOT / SEARCH_FILE).episodes
     assert len(eps) == 60 and {splits().seed_role(e.scene_seed) for e in eps} == {"calibration"}
@@ -103,3 +103,25 @@ def test_v2_calibration_search_data_regenerates_and_stays_out_of_every_suite():
     for name in SUITES:
         assert not {sid for sid, _ in _suite_scenes(name)} & cal_scenes, name
     assert all(e.scene.startswith(f"{FOLDER}/") for e in eps)
+
+
+def test_v2_calibration_tables_regenerate_and_stay_out_of_every_suite_and_floor():
+    from scenes.make_calibration_v2 import FOLDER, NUM_TABLE_EPISODES, REARRANGE_FILE, table_files
+    from scenes.shipped import ROOT
+    from tower_training.room_floor import RoomFloorConfig, room_floor_seeds
+    from tower_training.score_floor import FloorConfigV2
+
+    eps = load_episodes(ROOT / REARRANGE_FILE).episodes
+    assert len(eps) == NUM_TABLE_EPISODES and {splits().seed_role(e.scene_seed) for e in eps} == {"calibration"}
+    assert all(e.scene.startswith(f"{FOLDER}/") and (ROOT / e.scene).is_file() for e in eps)
+    # the first episodes and their tables regenerate exactly (the generator draws them in order)
+    head = table_files(3)
+    lines = (ROOT / REARRANGE_FILE).read_text().splitlines()
+    assert head.pop(REARRANGE_FILE).splitlines() == lines[:4]
+    assert len(head) == 3 and all((ROOT / rel).read_text() == text for rel, text in head.items())
+    tables = {Path(e.scene).stem for e in eps}
+    # apart from the seeds the tower's table and apartment score floors are calibrated on
+    floor_seeds = set(splits().seeds_of("calibration", FloorConfigV2().scenes)) | set(room_floor_seeds(RoomFloorConfig()))
+    assert not {e.scene_seed for e in eps} & floor_seeds
+    for name in SUITES:
+        assert not {sid for sid, _ in _suite_scenes(name)} & tables, name

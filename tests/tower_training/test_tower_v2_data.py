@@ -239,3 +239,22 @@ def test_room_view_config_refuses_bad_ranges():
         RoomViewConfig(width=8)
     with pytest.raises(ValueError, match="fovy_deg"):
         RoomViewConfig(fovy_deg=180.0)
+
+
+def test_init_record_traces_the_chain_of_starting_weights(tmp_path):
+    import hashlib
+    import json
+
+    from tower_training.train_v2 import init_record
+
+    with pytest.raises(SystemExit, match="expected an exported tower folder holding tower.onnx"):
+        init_record(tmp_path)
+    (tmp_path / "tower.onnx").write_bytes(b"weights")
+    prev = {"world": "v2", "command": "python -m tower_training.train --world v2 --out DIR",
+            "init": {"tower_dir": "v1dir", "world": "v1"}}
+    (tmp_path / "tower.json").write_text(json.dumps(prev))
+    rec = init_record(tmp_path)
+    assert rec["onnx_sha256"] == hashlib.sha256(b"weights").hexdigest()
+    assert rec["world"].startswith("v2") and rec["command"] == prev["command"] and rec["init"] == prev["init"]
+    (tmp_path / "tower.json").unlink()  # no metadata: an exported v1-style folder
+    assert init_record(tmp_path)["world"].startswith("v1") and init_record(tmp_path)["command"] is None
