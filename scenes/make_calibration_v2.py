@@ -68,20 +68,10 @@ def table_seeds() -> list[int]:
 def table_files(count: int = NUM_TABLE_EPISODES) -> dict[str, str]:
     """Relative path under ``scenes/`` -> file text: the first ``count`` table episodes (the same
     first episodes whatever ``count``: the generator draws them in order) and their tables."""
-    from sim_envs.pybullet.reach import PandaReach
-    from sim_envs.scenes.gen_tabletop_v2 import TABLE
-    from sim_envs.scenes.tabletop_v2_episodes import generate_tabletop_v2_episodes
+    from scenes.make_tabletop_v2 import episode_files  # needs PyBullet (the Panda's reach)
 
-    reach = PandaReach(TABLE)
-    try:
-        episodes, scenes = generate_tabletop_v2_episodes(TABLE_GENERATOR_SEED, count, table_seeds(),
-                                                         reach=reach.reachable, scene_dir=FOLDER, id_prefix="rearrange-v2-cal")
-    finally:
-        reach.close()
-    files = {REARRANGE_FILE: episodes_text(episodes)}
-    for scene in scenes:
-        files[f"{FOLDER}/{scene.id}.json"] = json.dumps(scene.to_json(), indent=1)
-    return files
+    return episode_files(TABLE_GENERATOR_SEED, count, table_seeds(), folder=FOLDER, episode_file=REARRANGE_FILE,
+                         id_prefix="rearrange-v2-cal")
 
 
 def search_files() -> dict[str, str]:

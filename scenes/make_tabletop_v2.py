@@ -20,25 +20,34 @@ from sim_envs.scenes.gen_tabletop_v2 import TABLE
 from sim_envs.scenes.splits import splits
 from sim_envs.scenes.tabletop_v2_episodes import generate_tabletop_v2_episodes
 
-__all__ = ["GENERATOR_SEED", "COUNT", "FOLDER", "build_files", "main"]
+__all__ = ["GENERATOR_SEED", "COUNT", "FOLDER", "episode_files", "build_files", "main"]
 
 GENERATOR_SEED = 2026
 COUNT = 160
 FOLDER = "tabletop-v2"
 
 
+def episode_files(generator_seed: int, count: int, seeds, *, folder: str, episode_file: str,
+                  id_prefix: str = "tabletop-v2") -> dict[str, str]:
+    """Relative path under ``scenes/`` -> file text: ``count`` v2 rearrangement episodes drawn
+    from ``seeds`` with pushes inside the PyBullet Panda's reach (``episode_file``) and every
+    table they use (``<folder>/<scene id>.json``)."""
+    reach = PandaReach(TABLE)
+    try:
+        episodes, scenes = generate_tabletop_v2_episodes(generator_seed, count, seeds, reach=reach.reachable, scene_dir=folder,
+                                                         id_prefix=id_prefix)
+    finally:
+        reach.close()
+    files = {episode_file: episodes_text(episodes)}
+    for scene in scenes:
+        files[f"{folder}/{scene.id}.json"] = json.dumps(scene.to_json(), indent=1)
+    return files
+
+
 def build_files(generator_seed: int = GENERATOR_SEED, count: int = COUNT) -> dict[str, str]:
     """Relative path under ``scenes/`` -> file text, for the episode file and every scene."""
     lo, hi = splits().seeds["evaluation"]
-    reach = PandaReach(TABLE)
-    try:
-        episodes, scenes = generate_tabletop_v2_episodes(generator_seed, count, range(lo, hi), reach=reach.reachable, scene_dir=FOLDER)
-    finally:
-        reach.close()
-    files = {f"{FOLDER}/episodes-v2.jsonl": episodes_text(episodes)}
-    for scene in scenes:
-        files[f"{FOLDER}/{scene.id}.json"] = json.dumps(scene.to_json(), indent=1)
-    return files
+    return episode_files(generator_seed, count, range(lo, hi), folder=FOLDER, episode_file=f"{FOLDER}/episodes-v2.jsonl")
 
 
 def main(argv: list[str] | None = None) -> int:
