@@ -97,6 +97,15 @@ class NavigatorConfig:
     recognise; with a range, frontiers stay at the edge of what was seen up close, so the base
     goes and looks. The occupancy grid and the planner are unchanged (obstacles seen from afar
     still block paths)."""
+    recheck_faded: bool = False
+    """When the goal's region drops under the score floor just as the base arrives at it, look
+    around once from there before deciding (False: stop there, trusting the earlier sighting). If
+    the close look finds it within reach again, stop; otherwise the sighting counts as a false
+    detection: regions within ``reject_radius`` of it are ignored from then on and the search
+    goes on."""
+    reject_radius: float = 0.5
+    """Radius (m) around a rejected sighting's centre inside which regions are ignored
+    (``recheck_faded``)."""
 
     def __post_init__(self) -> None:
         if not (isinstance(self.goal_tolerance, (int, float)) and not isinstance(self.goal_tolerance, bool)
@@ -106,6 +115,11 @@ class NavigatorConfig:
             value = getattr(self, name)
             if isinstance(value, bool) or not isinstance(value, int) or value < 0:
                 raise ValueError(f"{name}: expected an integer >= 0, got {value!r}")
+        if not isinstance(self.recheck_faded, bool):
+            raise ValueError(f"recheck_faded: expected a bool, got {self.recheck_faded!r}")
+        if not (isinstance(self.reject_radius, (int, float)) and not isinstance(self.reject_radius, bool)
+                and 0 < self.reject_radius < math.inf):
+            raise ValueError(f"reject_radius: expected a finite number > 0, got {self.reject_radius!r}")
         for name in ("keyframe_move", "keyframe_turn_deg", "stuck_move", "explore_range"):
             value = getattr(self, name)
             if not (isinstance(value, (int, float)) and not isinstance(value, bool) and 0 <= value < math.inf):
@@ -161,6 +175,10 @@ class MapNavigator:
         self._last_linear = 0.0
         """World (x, y) of virtual obstacles the base ran into."""
         self._backoff = 0
+        self._rechecking = False
+        """A faded sighting is being checked by a look-around (``recheck_faded``)."""
+        self._rejected: list[np.ndarray] = []
+        """World (x, y) centres of sightings a close look did not confirm."""
         self._close_keys = np.zeros(0, np.int64)
         """Space seen within ``explore_range``: world (x, y) on a lattice of half the grid's
         cell side, as ``ix * 2**32 + iy`` keys, sorted and unique."""
@@ -226,6 +244,21 @@ class MapNavigator:
             close = ndimage.binary_closing(close, iterations=_CLOSE_FILL)
         return dataclasses.replace(grid, known_hw=(grid.known_hw & close) | grid.occupied_hw)
 
+    def _locate(self):
+        """The map's answer for the goal, without regions centred within ``reject_radius`` of a
+        rejected sighting (``found`` False when none is left)."""
+        found = self.mapper.locate(self._goal)
+        if not found.found or not self._rejected:
+            return found
+        keep = [r for r in found.regions
+                if min(float(np.hypot(*(np.median(r.points_n3[:, :2], axis=0) - x))) for x in self._rejected)
+                > self.config.reject_radius]
+        if len(keep) == len(found.regions):
+            return found
+        if keep:
+            return dataclasses.replace(found, regions=keep)
+        return dataclasses.replace(found, found=False, regions=[], reason="only regions at rejected sightings")
+
     def _within_reach(self, footprint: np.ndarray, start: np.ndarray) -> float | None:
         """Distance (m) from ``start`` to the footprint when close enough to stop, else None."""
         near = float(np.min(np.linalg.norm(footprint - start, axis=1)))
@@ -237,13 +270,25 @@ class MapNavigator:
         """Choose a target (goal or frontier), plan to it; returns the next action. ``arrived``:
         the base has just reached the end of a path to the goal."""
         goal_text = self._goal
-        found = self.mapper.locate(goal_text)
+        found = self._locate()
         start = pose[:2]
+        if self._rechecking:
+            self._rechecking = False
+            if not (found.found and self._within_reach(found.best.points_n3[:, :2], start) is not None):
+                spot = np.median(self._seen, axis=0)
+                self._rejected.append(spot)
+                self._seen = None
+                self._note(f"a close look does not confirm '{goal_text}' at {np.round(spot, 2).tolist()}: searching on")
+                found = self._locate()
         if not found.found and arrived and self._seen is not None:
             # Frames from close by can drop the goal's score under the floor just as the base
-            # arrives: it was seen here, so stop rather than wander off.
+            # arrives: it was seen here, so stop rather than wander off (or look again first).
             near = self._within_reach(self._seen, start)
             if near is not None:
+                if self.config.recheck_faded:
+                    self._note(f"'{goal_text}' no longer stands out {near:.2f} m from where it was seen: looking again")
+                    self._rechecking, self._phase, self._turned = True, "look", 0.0
+                    return search_action(0.0, self.config.look_angular)
                 self._note(f"'{goal_text}' no longer stands out, but it was seen {near:.2f} m from here: stop")
                 return search_action(stop=True)
         grid, inflated = self._grids(start)
@@ -370,7 +415,7 @@ class MapNavigator:
             if self._bumped(pose):
                 return search_action(-0.2, 0.0)
             if self._steps % self.config.recheck_every == 0:
-                if not self._to_goal and self.mapper.locate(self._goal).found:
+                if not self._to_goal and self._locate().found:
                     self._note(f"'{self._goal}' appeared: replan")
                     return self._plan(pose)
                 _, inflated = self._grids(pose[:2])

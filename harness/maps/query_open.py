@@ -50,11 +50,11 @@ import numpy as np
 from agents.builtin import make_mapper
 from harness.maps.query import iou, select_points
 from harness.maps.scan import fuse_frames, point_labels, scan_scene
-from sim_envs.assets.library import catalogue, instance_of_asset, is_library_asset
+from sim_envs.assets.library import catalogue
 from sim_envs.scenes.descriptions import describable, referents
 from sim_envs.scenes.episodes import SCENES_ROOT
 from sim_envs.scenes.format import Scene, load_scene
-from sim_envs.scenes.splits import splits
+from sim_envs.scenes.splits import SPLIT_GROUPS, object_group, splits
 
 __all__ = [
     "QUERY_KINDS", "SPLIT_GROUPS", "DEFAULT_SCENES", "SCENE_FOLDER", "open_scene_ids", "load_open_scene", "object_group",
@@ -63,9 +63,6 @@ __all__ = [
 
 QUERY_KINDS = ("name", "synonym", "parent", "colour", "material", "function", "absent")
 """Kinds of query, in report order."""
-
-SPLIT_GROUPS = ("seen", "held_out_instance", "held_out_category", "validation")
-"""Split of a query's object, least seen last but one (``validation`` is model-selection data)."""
 
 DEFAULT_SCENES = 24
 """v2 tabletops the suite uses without ``--limit``."""
@@ -96,24 +93,6 @@ def load_open_scene(scene_id: str) -> Scene:
         raise ValueError(f"query-open: expected a v2 tabletop id such as {known[0] if known else 'tabletop-v2-300005'!r}, "
                          f"got {scene_id!r} (no file {path})")
     return load_scene(path)
-
-
-def object_group(obj) -> str:
-    """The split group (:data:`SPLIT_GROUPS`) of a scene object, from the split file.
-
-    Raises:
-        ValueError: the object is not a library instance (v2 scenes hold only library objects).
-    """
-    if not is_library_asset(obj.asset):
-        raise ValueError(f"query-open: object {obj.id!r} has asset {obj.asset!r}; expected a library instance 'lib:<id>'")
-    inst = instance_of_asset(obj.asset)
-    sp = splits()
-    cat_role, inst_role = sp.categories[inst.category], sp.instances[inst.id]
-    if cat_role == "test":
-        return "held_out_category"
-    if cat_role == "val" or inst_role == "val":
-        return "validation"
-    return "seen" if inst_role == "train" else "held_out_instance"
 
 
 def _phrases(obj, kind: str) -> tuple[str, ...]:

@@ -252,17 +252,33 @@ def _seed_spread_section(records, suite: str) -> list:
     return blocks
 
 
-def _description_kind_section(records, suite: str) -> list:
-    """Success per way the goal was named (``extras.description_kind`` of v2 episodes: name,
-    synonym, attribute, function), per (agent, encoder); empty when no record says."""
-    kinds = per_category(records, by="description_kind")
-    if not kinds:
-        return []
-    names = sorted({k for v in kinds.values() for k in v})
-    head = ("agent", "encoder", *names)
-    body = [(a, e, *(Cell(f"{v[k][0]:.2f} ({v[k][1]})", sort=v[k][0]) if k in v else "-" for k in names))
-            for (_, a, e), v in kinds.items()]
-    return [Heading(3, "Success by how the goal was named"), Table(head, body, name=f"description-kinds-{suite}")]
+_GROUPED_SECTIONS = (
+    ("description_kind", "Success by how the goal was named", "description-kinds"),
+    ("goal_split", "Success by how seen the goal object is", "goal-splits"),
+)
+"""Record ``extras`` fields an agent suite's success is split by: (field, heading, table name).
+``description_kind``: name, synonym, attribute, function (v2 episodes); ``goal_split``: the goal
+object's split group (:data:`sim_envs.scenes.splits.SPLIT_GROUPS`)."""
+
+
+def _grouped_sections(records, suite: str) -> list:
+    """Success per value of each :data:`_GROUPED_SECTIONS` field, per (agent, encoder): one table
+    each, left out when no record has the field."""
+    from sim_envs.scenes.splits import SPLIT_GROUPS
+
+    blocks = []
+    for field, heading, name in _GROUPED_SECTIONS:
+        groups = per_category(records, by=field)
+        if not groups:
+            continue
+        present = {k for v in groups.values() for k in v}
+        order = [g for g in SPLIT_GROUPS if g in present] if field == "goal_split" else []
+        names = order + sorted(present - set(order))
+        head = ("agent", "encoder", *names)
+        body = [(a, e, *(Cell(f"{v[k][0]:.2f} ({v[k][1]})", sort=v[k][0]) if k in v else "-" for k in names))
+                for (_, a, e), v in groups.items()]
+        blocks += [Heading(3, heading), Table(head, body, name=f"{name}-{suite}")]
+    return blocks
 
 
 def _scene_grid(ref: str, cache: dict):
@@ -383,7 +399,7 @@ def build_report(run_dirs_or_records, out_dir: str | os.PathLike, *,
                        Figure(w.figure(f"category_{suite}", png), f"success per category, {suite}")]
         else:
             w.skip(f"per-category chart, suite {suite}", "no record has a category and a success value")
-        blocks += _description_kind_section(suite_recs, suite)
+        blocks += _grouped_sections(suite_recs, suite)
         path_blocks = _path_figures(suite_recs, suite, w)
         if path_blocks:
             blocks += [Heading(3, "Episodes from above")] + path_blocks

@@ -27,7 +27,9 @@ from harness.replay.video import render_videos_of
 from harness.report.paths import REPLAYS_DIR, replay_stem
 from harness.runner.jobs import import_plugins, job_record
 from harness.runner.results import agent_label
+from sim_envs.assets.library import is_library_asset
 from sim_envs.scenes.episodes import Episode
+from sim_envs.scenes.splits import object_group
 
 __all__ = ["EpisodeJob", "EXPECTED_EPISODE_S", "run_episode", "episode_seed", "episode_recorder", "TASK_RUNNERS", "close_cached_envs",
            "env_kwargs_for"]
@@ -179,11 +181,18 @@ def _rollout(env, agent, job: EpisodeJob, *, on_step: Callable[[dict, dict], Non
             return info, steps, {"env_s": t_env, "agent_s": t_agent}
 
 
-def _description(job: EpisodeJob) -> dict:
-    """How the episode's first goal is named (v2 episodes): ``{"description_kind": ...}``, or
-    nothing when the episode does not record it."""
+def _description(job: EpisodeJob, scene=None) -> dict:
+    """How the episode's first goal is named (v2 episodes: ``description_kind``) and how seen its
+    object is (``goal_split``: its :func:`~sim_envs.scenes.splits.object_group` when it is a
+    library instance and ``scene`` is given), each left out when it does not apply. Report
+    metadata only: no agent reads it."""
     goal = job.episode.goals[0] if job.episode.goals else None
-    return {"description_kind": goal.description_kind} if goal is not None and goal.description_kind else {}
+    out = {"description_kind": goal.description_kind} if goal is not None and goal.description_kind else {}
+    if goal is not None and scene is not None:
+        obj = scene.object(goal.object_id)
+        if is_library_asset(obj.asset):
+            out["goal_split"] = object_group(obj)
+    return out
 
 
 def _run_search(job: EpisodeJob, agent, recorder: EpisodeRecorder | None = None) -> tuple[dict, dict, str | None, dict]:
@@ -202,7 +211,7 @@ def _run_search(job: EpisodeJob, agent, recorder: EpisodeRecorder | None = None)
     extras = {
         "path_xy": path, "start_xy": path[0] if path else None,
         "goal_xy": [round(float(v), 3) for v in (box[0, :2] + box[1, :2]) / 2], "scene": job.episode.scene,
-        **_description(job),
+        **_description(job, env.unwrapped.scene),
     }
     return metrics, timings, goal.category, extras
 
@@ -218,7 +227,7 @@ def _run_rearrange(job: EpisodeJob, agent, recorder: EpisodeRecorder | None = No
     for key in ("targets_on_side", "max_distractor_shift", "targets_done_fraction"):
         if isinstance(ev.get(key), (int, float, bool)):
             metrics[key] = ev[key]
-    return metrics, timings, category, {"scene": job.episode.scene, **_description(job)}
+    return metrics, timings, category, {"scene": job.episode.scene, **_description(job, scene)}
 
 
 TASK_RUNNERS: dict[str, Callable[..., tuple[dict, dict, str | None, dict]]] = {

@@ -38,11 +38,13 @@ from typing import Mapping
 from conceptfusion.errors import SimError
 from conceptfusion.io_utils import atomic_write_text
 from sim_envs.assets.library import catalogue as library_catalogue
+from sim_envs.assets.library import instance_of_asset, is_library_asset
 from sim_envs.scenes.episodes import SCENES_ROOT
 
 __all__ = [
     "SPLITS_FILE", "ROLES", "SEED_ROLES", "RESERVED_ROLES", "V1_FLOOR_CALIBRATION_SCENES", "V1_FLOOR_VALIDATION_SCENES",
-    "TEST_CATEGORIES", "VAL_CATEGORIES", "Splits", "SplitError", "derive_splits", "load_splits", "splits",
+    "TEST_CATEGORIES", "VAL_CATEGORIES", "SPLIT_GROUPS", "Splits", "SplitError", "derive_splits", "load_splits", "splits",
+    "object_group",
 ]
 
 SPLITS_FILE = SCENES_ROOT / "splits-v1.json"
@@ -78,6 +80,12 @@ V1_FLOOR_VALIDATION_SCENES = (
     "tabletop-1055", "tabletop-1573", "tabletop-2859", "tabletop-4881", "tabletop-6667", "tabletop-8559",
 )
 """Shipped v1 tabletop scenes the chosen v1 floor is measured on (every 8th from the 5th)."""
+
+SPLIT_GROUPS = ("seen", "held_out_instance", "held_out_category", "validation")
+"""How seen a scene object is (:func:`object_group`), least seen last but one: ``seen`` (an
+instance the tower trained on), ``held_out_instance`` (an unseen instance of a trained category),
+``held_out_category`` (a category held out from training entirely), ``validation`` (instances and
+categories used for model selection)."""
 
 RESERVED_ROLES = ("calibration", "validation")
 """Roles of reserved scenes: the v1 score floor is chosen on ``calibration`` scenes and measured on
@@ -256,6 +264,26 @@ def splits() -> Splits:
     if "shipped" not in _CACHE:
         _CACHE["shipped"] = load_splits(SPLITS_FILE)
     return _CACHE["shipped"]
+
+
+def object_group(obj) -> str:
+    """The split group (:data:`SPLIT_GROUPS`) of a scene object (anything with an ``asset``
+    ``"lib:<id>"``), from the shipped split file.
+
+    Raises:
+        ValueError: the object is not a library instance (v1 primitives have no split).
+    """
+    asset = getattr(obj, "asset", None)
+    if not isinstance(asset, str) or not is_library_asset(asset):
+        raise ValueError(f"object {getattr(obj, 'id', obj)!r}: expected a library instance asset 'lib:<id>', got {asset!r}")
+    inst = instance_of_asset(asset)
+    sp = splits()
+    cat_role, inst_role = sp.categories[inst.category], sp.instances[inst.id]
+    if cat_role == "test":
+        return "held_out_category"
+    if cat_role == "val" or inst_role == "val":
+        return "validation"
+    return "seen" if inst_role == "train" else "held_out_instance"
 
 
 def main(argv: list[str] | None = None) -> int:

@@ -112,19 +112,40 @@ def test_v2_episode_suites_default_to_the_v2_tower_and_record_how_the_goal_is_na
     kinds = [r["extras"]["description_kind"] for r in records]
     assert kinds == [j.episode.goals[0].description_kind for j in episode_jobs(get_suite("rearrange-v2"), config, "r")]
     assert all(k in ("name", "synonym", "attribute", "function", "parent") for k in kinds)
+    # how seen each goal object is, recomputed from the scene files and the split file
+    from sim_envs.scenes.episodes import SCENES_ROOT
+    from sim_envs.scenes.format import load_scene
+    from sim_envs.scenes.splits import object_group
+
+    jobs = episode_jobs(get_suite("rearrange-v2"), config, "r")
+    expected = [object_group(load_scene(SCENES_ROOT / j.episode.scene).object(j.episode.goals[0].object_id)) for j in jobs]
+    assert [r["extras"]["goal_split"] for r in records] == expected
 
 
-def test_report_gives_success_by_description_kind(tmp_path):
+def test_v1_episodes_record_no_goal_split(tmp_path):
+    from harness.runner.run import run_suites
+
+    config = RunConfig(suites=("rearrange",), agents=("random-pusher",), limit=1, backend="serial", record="none")
+    (record,) = run_suites(config, tmp_path / "run", progress=False)
+    assert record["status"] == "ok" and "goal_split" not in record["extras"]
+
+
+def test_report_gives_success_by_description_kind_and_goal_split(tmp_path):
     from harness.report.document import render_markdown
     from harness.report.markdown import build_report
 
-    def rec(i, kind, ok):
+    def rec(i, kind, split, ok):
         return {"suite": "rearrange-v2", "task": "tabletop_rearrange", "agent": "map-pusher", "agent_kwargs": {},
                 "encoder": "embedded-v2", "episode_id": f"e{i}", "seed": 0, "status": "ok", "error": None,
                 "metrics": {"success": ok}, "timings": {"wall_s": 1.0}, "category": "mug",
-                "extras": {"description_kind": kind}}
+                "extras": {"description_kind": kind, "goal_split": split}}
 
-    records = [rec(0, "name", True), rec(1, "name", False), rec(2, "function", True), rec(3, "synonym", False)]
+    records = [rec(0, "name", "seen", True), rec(1, "name", "held_out_category", False),
+               rec(2, "function", "seen", True), rec(3, "synonym", "validation", False), rec(4, "name", "seen", False)]
     md = render_markdown(build_report(records, tmp_path))
     assert "Success by how the goal was named" in md
-    assert "| map-pusher | embedded-v2 | 1.00 (1) | 0.50 (2) | 0.00 (1) |" in md
+    assert "| map-pusher | embedded-v2 | 1.00 (1) | 0.33 (3) | 0.00 (1) |" in md
+    # split groups in the split file's order (seen first), not alphabetically
+    assert "Success by how seen the goal object is" in md
+    assert "| agent | encoder | seen | held_out_category | validation |" in md
+    assert "| map-pusher | embedded-v2 | 0.67 (3) | 0.00 (1) | 0.00 (1) |" in md
