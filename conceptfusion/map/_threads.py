@@ -14,8 +14,9 @@ from concurrent.futures import ThreadPoolExecutor
 from typing import Callable, TypeVar
 
 import numba
+import numpy as np
 
-__all__ = ["map_ranges", "run_ranges", "one_blas_thread"]
+__all__ = ["map_ranges", "run_ranges", "map_bounds", "balanced_bounds", "one_blas_thread"]
 
 T = TypeVar("T")
 
@@ -43,16 +44,43 @@ def _bounds(n: int, min_chunk: int) -> list[int]:
     return [n * i // parts for i in range(parts + 1)]
 
 
-def map_ranges(fn: Callable[[int, int], T], n: int, *, min_chunk: int) -> list[T]:
-    """``[fn(start, stop), ...]`` over ``[0, n)`` split into at most ``NUMBA_NUM_THREADS``
-    ranges of at least ``min_chunk`` items, in range order; the calling thread runs the first."""
-    bounds = _bounds(n, min_chunk)
+def balanced_bounds(n: int, cost_cum, stride: int, *, min_chunk: int) -> list[int]:
+    """Bounds ``[0, ..., n]`` of at most ``NUMBA_NUM_THREADS`` consecutive ranges of about equal
+    cost, each of at least ``min_chunk`` items where the split allows it.
+
+    ``cost_cum[i]`` is the (estimated) cost of items ``[0, i * stride)``, non-decreasing, with
+    ``cost_cum[-1]`` the cost of all ``n``; a split lands on a multiple of ``stride``. Where the
+    cost is even this is :func:`map_ranges`'s split; where it is not (work concentrated in some
+    items), each thread gets its share of the work rather than of the items.
+    """
+    parts = max(1, min(int(numba.config.NUMBA_NUM_THREADS), n // max(min_chunk, 1)))
+    cost = np.asarray(cost_cum, np.float64)
+    total = float(cost[-1]) if len(cost) else 0.0
+    if parts == 1 or not total > 0:
+        return _bounds(n, min_chunk)
+    bounds = [0]
+    for k in range(1, parts):
+        at = min(n, int(np.searchsorted(cost, total * k / parts)) * int(stride))
+        if at > bounds[-1] and at < n:
+            bounds.append(at)
+    return bounds + [n]
+
+
+def map_bounds(fn: Callable[[int, int], T], bounds: list[int]) -> list[T]:
+    """``[fn(bounds[0], bounds[1]), fn(bounds[1], bounds[2]), ...]``, the ranges on the helper
+    threads and the first on the calling thread, in range order."""
     if len(bounds) == 2:
-        return [fn(0, n)]
+        return [fn(bounds[0], bounds[1])]
     pool = _executor()
     futures = [pool.submit(fn, bounds[i], bounds[i + 1]) for i in range(1, len(bounds) - 1)]
     first = fn(bounds[0], bounds[1])
     return [first] + [f.result() for f in futures]
+
+
+def map_ranges(fn: Callable[[int, int], T], n: int, *, min_chunk: int) -> list[T]:
+    """``[fn(start, stop), ...]`` over ``[0, n)`` split into at most ``NUMBA_NUM_THREADS``
+    ranges of at least ``min_chunk`` items, in range order; the calling thread runs the first."""
+    return map_bounds(fn, _bounds(n, min_chunk))
 
 
 def run_ranges(fn: Callable[[int, int], None], n: int, *, min_chunk: int) -> None:

@@ -11,7 +11,7 @@ from conceptfusion.errors import DtypeError, ShapeError
 from conceptfusion.map import _association, dense, feature_store
 from conceptfusion.map import fusion as fusion_module
 from conceptfusion.map._rowhash import hash_weights
-from conceptfusion.map._threads import run_ranges
+from conceptfusion.map._threads import balanced_bounds, map_bounds, run_ranges
 from conceptfusion.map.dense import palette_from_dense
 from conceptfusion.map.fusion import PointFusionMap
 from conceptfusion.map.quantize import quantize_features
@@ -210,6 +210,28 @@ def test_threaded_scores_equal_one_pass(monkeypatch):
     seen = []
     run_ranges(lambda a, b: seen.append((a, b)), 10, min_chunk=3)
     assert sorted(seen) == [(0, 3), (3, 6), (6, 10)]
+
+
+def test_balanced_bounds_give_each_thread_its_share_of_the_work(monkeypatch):
+    monkeypatch.setattr("numba.config.NUMBA_NUM_THREADS", 2)
+    even = np.arange(0, 1001, 10, dtype=np.float64)  # cost 1 per item, sampled every 10 items
+    assert balanced_bounds(1000, even, 10, min_chunk=100) == [0, 500, 1000]
+    # the last fifth of the items does 4x the work of the rest together: the split moves into it
+    per_sample = np.r_[np.ones(80), 16 * np.ones(20)]
+    skewed = np.r_[0.0, np.cumsum(per_sample * 10)]
+    b = balanced_bounds(1000, skewed, 10, min_chunk=100)
+    assert b[0] == 0 and b[-1] == 1000 and len(b) == 3 and 800 < b[1] < 1000 and b[1] % 10 == 0
+    cost_before = skewed[b[1] // 10]
+    assert abs(cost_before - (skewed[-1] - cost_before)) <= 16 * 10
+    # no work at all, or too few items to split: the plain split
+    assert balanced_bounds(1000, np.zeros(101), 10, min_chunk=100) == [0, 500, 1000]
+    assert balanced_bounds(150, np.arange(0, 151, 10.0), 10, min_chunk=100) == [0, 150]
+    # all the work in the first sample: no empty range
+    front = np.r_[0.0, np.full(100, 1000.0)]
+    assert balanced_bounds(1000, front, 10, min_chunk=100) == [0, 10, 1000]
+    seen = []
+    assert map_bounds(lambda a, c: seen.append((a, c)) or (a, c), [0, 7, 9, 12]) == [(0, 7), (7, 9), (9, 12)]
+    assert sorted(seen) == [(0, 7), (7, 9), (9, 12)]
 
 
 def test_dense_grouping_split_over_threads_is_the_same(monkeypatch):
