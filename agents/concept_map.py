@@ -187,19 +187,22 @@ class ConceptMapper:
         self.map.integrate(frame.rgb, frame.depth, frame.K, frame.cam_to_world, feats)
         self.frames += 1
 
-    def locate(self, text: str) -> QueryResult:
-        """Where ``text`` is in the map: regions (best first), or ``found=False`` with a reason."""
-        res = self._locate(text)
+    def locate(self, text: str, *, floor: bool = True) -> QueryResult:
+        """Where ``text`` is in the map: regions (best first), or ``found=False`` with a reason.
+
+        ``floor=False`` leaves out the encoder's score floor (``config.min_score``): regions
+        need only beat the generic phrases, for callers that know the object is there."""
+        res = self._locate(text, floor)
         self._answers[text] = res
         return res
 
-    def _locate(self, text: str) -> QueryResult:
+    def _locate(self, text: str, floor: bool = True) -> QueryResult:
         c = self.config
         res = locate(
             self.map, self.text_vector(text), self.negatives(),
             relevancy_threshold=c.relevancy_threshold, voxel_size=c.voxel_size, min_points=c.min_points,
         )
-        if c.min_score is None or not res.found:
+        if c.min_score is None or not floor or not res.found:
             return res
         kept = [r for r in res.regions if float(np.median(r.scores_n)) >= c.min_score]
         if kept:

@@ -121,6 +121,11 @@ def test_embedded_mapper_finds_present_and_rejects_absent_names():
     results = [mapper.locate(n) for n in ABSENT]
     assert np.mean([not r.found for r in results]) >= 6 / 8  # measured 8 of 8
     assert all(r.reason for r in results if not r.found)
+    # floor=False asks the same map without the floor, once, and leaves the floor in place
+    loose = [mapper.locate(n, floor=False) for n in ABSENT]
+    assert np.mean([r.found for r in loose]) >= 0.5  # measured 8 of 8
+    assert all(l.found or not r.found for r, l in zip(results, loose))  # the floor only removes
+    assert [mapper.locate(n).found for n in ABSENT] == [r.found for r in results]
 
     mapper.config = dataclasses.replace(mapper.config, min_score=None)  # the same map without the floor
     assert np.mean([mapper.locate(n).found for n in ABSENT]) >= 0.5  # measured 8 of 8: the floor does the work
