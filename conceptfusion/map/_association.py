@@ -71,30 +71,21 @@ def associate(geo, n, world_to_cam, K, valid_pix, obs, dist_th2, cos_th, h, w):
 def view_cost(geo, n, world_to_cam, K, h, w):
     """Estimated scan work of the first ``n`` points, sampled every :data:`_COST_STRIDE`:
     ``out[i]`` is the cost of points ``[0, i * stride)`` (the last entry: all ``n``), a point
-    counting 1 outside the frame and :data:`_IN_VIEW_COST` when it projects into it.
+    counting 1 outside the frame and :data:`_IN_VIEW_COST` when it projects into it (as
+    :func:`_project_block` decides for the scan).
 
     Shape:
         returns (ceil(n / stride) + 1,) float64.
     """
     m = (n + _COST_STRIDE - 1) // _COST_STRIDE
     out = np.zeros(m + 1, np.float64)
-    r20, r21, r22, t2 = world_to_cam[2, 0], world_to_cam[2, 1], world_to_cam[2, 2], world_to_cam[2, 3]
-    r00, r01, r02, t0 = world_to_cam[0, 0], world_to_cam[0, 1], world_to_cam[0, 2], world_to_cam[0, 3]
-    r10, r11, r12, t1 = world_to_cam[1, 0], world_to_cam[1, 1], world_to_cam[1, 2], world_to_cam[1, 3]
-    fx, s, cx, fy, cy = K[0, 0], K[0, 1], K[0, 2], K[1, 1], K[1, 2]
+    xs, ys, zs, zcs = np.empty(1), np.empty(1), np.empty(1), np.empty(1)
+    qs = np.empty(1, np.int32)
     acc = 0.0
     for i in range(m):
         k = i * _COST_STRIDE
-        x, y, z = geo[k, 0], geo[k, 1], geo[k, 2]
-        zc = r20 * x + r21 * y + r22 * z + t2
-        cost = 1.0
-        if zc > 0.0:
-            xc = (r00 * x + r01 * y + r02 * z + t0) / zc
-            yc = (r10 * x + r11 * y + r12 * z + t1) / zc
-            u = fx * xc + s * yc + cx
-            v = fy * yc + cy
-            if u >= -0.5 and u < w and v >= -0.5 and v < h:
-                cost = _IN_VIEW_COST
+        _project_block(geo, k, 1, world_to_cam, K, h, w, xs, ys, zs, qs, zcs)
+        cost = _IN_VIEW_COST if qs[0] >= 0 else 1.0
         acc += cost * min(_COST_STRIDE, n - k)
         out[i + 1] = acc
     return out
