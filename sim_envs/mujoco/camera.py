@@ -9,9 +9,18 @@ Outputs are :class:`conceptfusion.frames.RGBDFrame` in the :mod:`conceptfusion` 
 OpenCV camera frame, 4x4 float64 camera-to-world pose, metric depth along the optical axis
 (``inf`` where nothing is hit), ``segmentation`` (H, W) int32 object index (-1: background or
 unnamed geometry).
+
+Under EGL (the headless default) every camera of a thread renders in one GL context that lives as
+long as the thread: EGL contexts are surfaceless here (MuJoCo draws into each camera's own
+offscreen framebuffer), and the first renderer made in a fresh context costs about 55 ms (the
+software rasteriser sets itself up per context) against 8 ms in a used one. A camera per episode
+(a new scene per episode) paid that every time. Other GL backends keep a context per camera.
 """
 
 from __future__ import annotations
+
+import os
+import threading
 
 import numpy as np
 
@@ -63,6 +72,22 @@ def look_at_gl(eye, target, up=(0.0, 0.0, 1.0)) -> tuple[np.ndarray, np.ndarray]
     return eye, np.stack([right, upv, back], axis=1)
 
 
+_THREAD_GL = threading.local()
+
+
+def _gl_context(width: int, height: int):
+    """The GL context for a new camera: this thread's shared one under EGL (made on first use,
+    never freed), else a new context of its own. Returns (context, owned)."""
+    from mujoco import gl_context
+
+    if os.environ.get("MUJOCO_GL", "").lower() != "egl":
+        return gl_context.GLContext(width, height), True
+    gl = getattr(_THREAD_GL, "context", None)
+    if gl is None:
+        gl = _THREAD_GL.context = gl_context.GLContext(width, height)  # EGL ignores the size
+    return gl, False
+
+
 class MujocoRGBDCamera:
     """A free camera rendering colour, depth and instance segmentation of a MuJoCo model.
 
@@ -85,8 +110,6 @@ class MujocoRGBDCamera:
         geom_object: np.ndarray | None = None,
         fast: bool = True,
     ) -> None:
-        from mujoco import gl_context
-
         if width <= 0 or height <= 0:
             raise ValueError(f"width, height: expected positive sizes, got {width}x{height}")
         if fast:
@@ -100,7 +123,7 @@ class MujocoRGBDCamera:
         self.width, self.height = int(width), int(height)
         self.fovy_deg = float(fovy_deg)
         self.K = intrinsics_from_fovy(self.fovy_deg, self.width, self.height)
-        self._gl = gl_context.GLContext(self.width, self.height)
+        self._gl, self._owns_gl = _gl_context(self.width, self.height)
         self._gl.make_current()
         self._ctx = mujoco.MjrContext(model, mujoco.mjtFontScale.mjFONTSCALE_150)
         mujoco.mjr_setBuffer(mujoco.mjtFramebuffer.mjFB_OFFSCREEN, self._ctx)
@@ -159,6 +182,7 @@ class MujocoRGBDCamera:
             is shared with the camera).
         """
         self._gl.make_current()
+        mujoco.mjr_setBuffer(mujoco.mjtFramebuffer.mjFB_OFFSCREEN, self._ctx)  # this camera's buffer
         self._update(segment=False)
         mujoco.mjr_render(self._rect, self._scene, self._ctx)
         if segmentation:
@@ -215,10 +239,12 @@ class MujocoRGBDCamera:
         return lut[seg]
 
     def close(self) -> None:
-        """Release the GL context."""
+        """Release the renderer (and the GL context when the camera has its own)."""
         if self._gl is not None:
+            self._gl.make_current()
             self._ctx.free()
-            self._gl.free()
+            if self._owns_gl:
+                self._gl.free()
             self._gl = None
 
     def __del__(self) -> None:  # pragma: no cover - best effort

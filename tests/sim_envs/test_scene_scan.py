@@ -97,3 +97,56 @@ def test_scene_file_round_trip_and_bad_files(tmp_path):
         load_scene(tmp_path / "broken.json")
     with pytest.raises(KeyError, match="no object 'nope'"):
         scene.object("nope")
+
+
+def _frames_in_new_thread(fn):
+    """``fn()`` run on a fresh thread (so in a GL context of its own under EGL)."""
+    import threading
+
+    out = {}
+    t = threading.Thread(target=lambda: out.setdefault("v", fn()))
+    t.start()
+    t.join()
+    return out["v"]
+
+
+def test_cameras_sharing_the_threads_gl_context_render_what_lone_cameras_render():
+    """Under EGL the cameras of a thread share one GL context: interleaving two scenes' cameras
+    (and closing one before another is made) gives the pixels of cameras alone in a context."""
+    poses = [((0.9, -0.9, 1.2), (0.0, 0.0, 0.4)), ((-0.7, 0.8, 1.0), (0.1, 0.0, 0.45))]
+
+    def lone(seed, size):
+        sim = build_mujoco(generate_tabletop(seed))
+        cam = MujocoRGBDCamera(sim.model, sim.data, *size, geom_object=sim.geom_object)
+        frames = []
+        for eye, target in poses:
+            cam.set_pose(eye, target)
+            frames.append(cam.render())
+        cam.close()
+        return frames
+
+    want = {(s, size): _frames_in_new_thread(lambda s=s, size=size: lone(s, size)) for s, size in ((3, (W, H)), (4, (96, 72)))}
+
+    def shared():
+        sims = {s: build_mujoco(generate_tabletop(s)) for s in (3, 4)}
+        gone = MujocoRGBDCamera(sims[4].model, sims[4].data, 64, 48, geom_object=sims[4].geom_object)
+        gone.render()
+        gone.close()  # frees its renderer in the shared context, not the context
+        cams = {3: MujocoRGBDCamera(sims[3].model, sims[3].data, W, H, geom_object=sims[3].geom_object),
+                4: MujocoRGBDCamera(sims[4].model, sims[4].data, 96, 72, geom_object=sims[4].geom_object)}
+        got = {3: [], 4: []}
+        for eye, target in poses:
+            for s in (3, 4):  # interleaved: each render must use its own camera's buffer
+                cams[s].set_pose(eye, target)
+                got[s].append(cams[s].render())
+        return cams, got
+
+    cams, got = _frames_in_new_thread(shared)
+    import os
+    if os.environ.get("MUJOCO_GL") == "egl":
+        assert cams[3]._gl is cams[4]._gl and not cams[3]._owns_gl
+    for s, size in ((3, (W, H)), (4, (96, 72))):
+        for a, b in zip(want[(s, size)], got[s]):
+            assert a.rgb.shape == (size[1], size[0], 3)
+            assert np.array_equal(a.rgb, b.rgb) and np.array_equal(a.depth, b.depth)
+            assert np.array_equal(a.segmentation, b.segmentation)
