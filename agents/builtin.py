@@ -61,16 +61,19 @@ def make_mapper(
     return ConceptMapper(featurizer, MapperConfig(persistent=persistent, min_score=score_floor_for(featurizer, setting)))
 
 
-def _map_pusher(encoder: str = "embedded", proposer: str = "rgbd", scan: bool = True, assume_present: bool = True):
+def _map_pusher(encoder: str = "embedded", proposer: str = "rgbd", scan: bool = True, assume_present: bool = True,
+                name_only_fallback: bool = True):
     from agents.pusher import MapPusher, PusherConfig
 
-    return MapPusher(make_mapper(encoder, proposer), PusherConfig(assume_present=assume_present), use_scan=scan)
+    return MapPusher(make_mapper(encoder, proposer), PusherConfig(assume_present=assume_present, name_only_fallback=name_only_fallback),
+                     use_scan=scan)
 
 
-def _frame_pusher(encoder: str = "embedded", proposer: str = "rgbd", assume_present: bool = True):
+def _frame_pusher(encoder: str = "embedded", proposer: str = "rgbd", assume_present: bool = True, name_only_fallback: bool = True):
     from agents.pusher import MapPusher, PusherConfig
 
-    return MapPusher(make_mapper(encoder, proposer, persistent=False), PusherConfig(assume_present=assume_present), use_scan=False)
+    return MapPusher(make_mapper(encoder, proposer, persistent=False),
+                     PusherConfig(assume_present=assume_present, name_only_fallback=name_only_fallback), use_scan=False)
 
 
 def _map_navigator(encoder: str = "embedded", proposer: str = "rgbd", seed: int = 0, integrate_every: int = 1,
@@ -109,12 +112,13 @@ _SEED = Option.at_least(int, 0, 0)
 register_agent(AgentSpec(
     "map-pusher", _map_pusher, "tabletop_rearrange",
     "ConceptFusion map from an orbit scan; pushes each named object's median across the line; re-checks and retries",
-    {**_PERCEPTION, "scan": Option(bool, True), "assume_present": Option(bool, True)}, uses_map=True,
+    {**_PERCEPTION, "scan": Option(bool, True), "assume_present": Option(bool, True), "name_only_fallback": Option(bool, True)},
+    uses_map=True,
 ))
 register_agent(AgentSpec(
     "frame-pusher", _frame_pusher, "tabletop_rearrange",
     "single-frame (2.5D) pusher: the same perception on the current camera frame only, no map",
-    {**_PERCEPTION, "assume_present": Option(bool, True)},
+    {**_PERCEPTION, "assume_present": Option(bool, True), "name_only_fallback": Option(bool, True)},
 ))
 register_agent(AgentSpec(
     "random-pusher", "agents.baselines:RandomPusher", "tabletop_rearrange",

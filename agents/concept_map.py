@@ -187,19 +187,25 @@ class ConceptMapper:
         self.map.integrate(frame.rgb, frame.depth, frame.K, frame.cam_to_world, feats)
         self.frames += 1
 
-    def locate(self, text: str, *, floor: bool = True) -> QueryResult:
+    def locate(self, text: str, *, floor: bool = True, contrast: bool = True) -> QueryResult:
         """Where ``text`` is in the map: regions (best first), or ``found=False`` with a reason.
 
         ``floor=False`` leaves out the encoder's score floor (``config.min_score``): regions
-        need only beat the generic phrases, for callers that know the object is there."""
-        res = self._locate(text, floor)
+        need only beat the generic phrases, for callers that know the object is there.
+        ``contrast=False`` (with ``floor=False``) leaves out the generic phrases as well: the
+        points scoring highest for ``text`` form the regions whatever else they resemble, for a
+        name the encoder may never have learned (it scores below "object" everywhere)."""
+        if not contrast and floor:
+            raise ValueError("locate: contrast=False needs floor=False (the floor is calibrated on contrasted answers)")
+        res = self._locate(text, floor, contrast)
         self._answers[text] = res
         return res
 
-    def _locate(self, text: str, floor: bool = True) -> QueryResult:
+    def _locate(self, text: str, floor: bool = True, contrast: bool = True) -> QueryResult:
         c = self.config
+        negatives = self.negatives() if contrast else np.zeros((0, self.featurizer.dim), np.float32)
         res = locate(
-            self.map, self.text_vector(text), self.negatives(),
+            self.map, self.text_vector(text), negatives,
             relevancy_threshold=c.relevancy_threshold, voxel_size=c.voxel_size, min_points=c.min_points,
         )
         if c.min_score is None or not floor or not res.found:

@@ -99,3 +99,23 @@ def test_mapper_bad_input():
                      "K": np.eye(3), "cam_to_world": np.eye(4)})
     assert m.privileged and not ConceptMapper(PerceivedFeaturizer(enc, make_proposer("rgbd"))).privileged
     assert ConceptMapper(PerceivedFeaturizer(enc, make_proposer("gt"))).privileged
+
+
+def test_locate_without_contrast_finds_a_name_that_loses_to_the_generic_phrases(scan):
+    """``contrast=False`` drops the generic phrases: a name that every generic phrase matches as
+    well as itself (here: a 'generic phrase' equal to the name) is found by its own scores."""
+    mapper = ConceptMapper(OracleFeaturizer(ColorNameEncoder()))
+    info0 = scan[0][1]
+    mapper.reset(dict(enumerate(info0["object_names"])))
+    for obs, info in scan:
+        mapper.integrate(obs, segmentation=info["segmentation"])
+    _, name = _unique_colour_objects(info0)[0]
+    lo, hi = (np.asarray(o["aabb"]) for o in info0["scene_graph"]["objects"] if o["name"] == name).__next__()
+    assert mapper.locate(name).found
+    mapper._negatives = mapper.text_vector(name)[None]  # ties with the name everywhere
+    assert not mapper.locate(name, floor=False).found
+    bare = mapper.locate(name, floor=False, contrast=False)
+    assert bare.found and np.linalg.norm(bare.best.median[:2] - (lo + hi)[:2] / 2) < 0.05
+    assert mapper.answers[name] is bare
+    with pytest.raises(ValueError, match="contrast=False needs floor=False"):
+        mapper.locate(name, contrast=False)

@@ -1,5 +1,7 @@
 """The pusher's ``assume_present`` option: an object the instruction names but the score floor
-rejects is pushed by its best region when the option is on, and left alone when it is off."""
+rejects is pushed by its best region when the option is on, and left alone when it is off; with
+``name_only_fallback`` too, one whose regions all lose to the generic phrases is pushed by the
+region that scores highest for its name alone."""
 
 from __future__ import annotations
 
@@ -26,7 +28,8 @@ class _UnderTheFloor:
 
     privileged = False
 
-    def __init__(self) -> None:
+    def __init__(self, loses_to_generics: bool = False) -> None:
+        self.loses_to_generics = loses_to_generics
         pts, self.mug = _table_and_mug()
         self.map = type("M", (), {"points": pts})()
         self.asked: list[tuple[str, bool]] = []
@@ -37,11 +40,13 @@ class _UnderTheFloor:
     def integrate(self, frame, segmentation=None) -> None:
         pass
 
-    def locate(self, text, *, floor=True):
-        self.asked.append((text, floor))
+    def locate(self, text, *, floor=True, contrast=True):
+        self.asked.append((text, floor) if contrast else (text, floor, contrast))
         empty = np.zeros(0, np.float32)
         if floor:
             return QueryResult(False, [], empty, empty, empty, reason="the best region scores 0.30, below the encoder's floor 0.35")
+        if contrast and self.loses_to_generics:
+            return QueryResult(False, [], empty, empty, empty, reason="no region beats the generic phrases")
         pts = self.map.points[self.mug]
         return QueryResult(True, [Region(pts, np.full(len(pts), 0.3, np.float32), self.mug)], empty, empty, empty)
 
@@ -68,3 +73,17 @@ def test_an_object_under_the_floor_is_pushed_only_when_assumed_present(assume):
         assert action[4] > 0.5  # stop: nothing to push
         assert any("'mug' not found" in line for line in agent.log), agent.log
         assert mapper.asked == [("mug", True)]
+
+
+@pytest.mark.parametrize("fallback", [False, True])
+def test_a_name_that_loses_to_the_generic_phrases_is_pushed_only_with_the_name_only_fallback(fallback):
+    mapper = _UnderTheFloor(loses_to_generics=True)
+    agent = MapPusher(mapper, PusherConfig(assume_present=True, name_only_fallback=fallback), use_scan=False)
+    action = agent.act(_observation())
+    if fallback:
+        assert action[4] < 0.5 and action[3] > 0 and abs(np.cos(action[2]) - 1.0) < 0.2
+        assert any("scores highest for the name alone" in line for line in agent.log), agent.log
+        assert mapper.asked == [("mug", True), ("mug", False), ("mug", False, False)]
+    else:
+        assert action[4] > 0.5
+        assert mapper.asked == [("mug", True), ("mug", False)]
