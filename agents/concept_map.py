@@ -201,6 +201,27 @@ class ConceptMapper:
         self._answers[text] = res
         return res
 
+    def locate_present(self, text: str, *, name_only: bool = True) -> QueryResult:
+        """:meth:`locate` for an object the caller knows is there (an instruction or a question
+        names it): the floored answer when it finds ``text``; else the best region without the
+        floor (it must still beat the generic phrases); else, with ``name_only``, the region that
+        scores highest for ``text`` alone (``contrast=False``); else the floored answer.
+        ``extras["presumed"]`` says which: absent for the floored answer, ``"under_floor"`` or
+        ``"name_only"``, with ``extras["passed_over"]`` the reasons of the answers passed over."""
+        res = self.locate(text)
+        if res.found:
+            return res
+        reasons = [res.reason]
+        loose = self.locate(text, floor=False)
+        if loose.found:
+            return dataclasses.replace(loose, extras={**loose.extras, "presumed": "under_floor", "passed_over": reasons})
+        reasons.append(loose.reason)
+        if name_only:
+            bare = self.locate(text, floor=False, contrast=False)
+            if bare.found:
+                return dataclasses.replace(bare, extras={**bare.extras, "presumed": "name_only", "passed_over": reasons})
+        return res
+
     def _locate(self, text: str, floor: bool = True, contrast: bool = True) -> QueryResult:
         c = self.config
         negatives = self.negatives() if contrast else np.zeros((0, self.featurizer.dim), np.float32)

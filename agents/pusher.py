@@ -181,18 +181,16 @@ class MapPusher:
 
         fallbacks = []  # (name, side, push) with a blocked corridor: tried after every clear push
         for name, side in self._targets:
-            res = self.mapper.locate(name)
-            if not res.found and c.assume_present:
-                loose = self.mapper.locate(name, floor=False)
-                if loose.found:
-                    self.log.append(f"'{name}' under the floor ({res.reason}); the instruction names it: taking its best region")
-                    res = loose
-                elif c.name_only_fallback:
-                    bare = self.mapper.locate(name, floor=False, contrast=False)
-                    if bare.found:
-                        self.log.append(f"'{name}' loses to the generic phrases ({loose.reason}); the instruction names it: "
-                                        "taking the region that scores highest for the name alone")
-                        res = bare
+            if c.assume_present:
+                res = self.mapper.locate_present(name, name_only=c.name_only_fallback)
+                presumed, passed = res.extras.get("presumed"), res.extras.get("passed_over", [])
+                if presumed == "under_floor":
+                    self.log.append(f"'{name}' under the floor ({passed[0]}); the instruction names it: taking its best region")
+                elif presumed == "name_only":
+                    self.log.append(f"'{name}' loses to the generic phrases ({passed[-1]}); the instruction names it: "
+                                    "taking the region that scores highest for the name alone")
+            else:
+                res = self.mapper.locate(name)
             if not res.found:
                 self.log.append(f"'{name}' not found: {res.reason}")
                 continue

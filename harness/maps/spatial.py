@@ -108,6 +108,13 @@ def _answer(q: dict, parsed, results: dict, viewing_direction: np.ndarray) -> di
             "found": ans.found, "correct": bool(correct), "reason": ans.reason[:160]}
 
 
+def _locate(mapper, name: str, assume_present: bool, name_only: bool):
+    """The mapper's answer for a noun phrase of a question; with ``assume_present`` on the
+    question's presupposition that the object is there
+    (:meth:`~agents.concept_map.ConceptMapper.locate_present`, ``name_only`` its last fallback)."""
+    return mapper.locate_present(name, name_only=name_only) if assume_present else mapper.locate(name)
+
+
 def _frame_key(results: dict, names: tuple[str, str]) -> tuple:
     """How well one frame shows both names, from the frame's own located regions (higher is better)."""
     found = [results[n].regions[0] for n in names if results[n].found]
@@ -117,12 +124,16 @@ def _frame_key(results: dict, names: tuple[str, str]) -> tuple:
 
 
 def answer_questions(scan: SceneScan, questions: list[dict], method: str, encoder: str, *, parser: str = DEFAULT_PARSER,
-                     setting: str = "tabletop") -> list[dict]:
+                     setting: str = "tabletop", assume_present: bool = True, name_only_fallback: bool = True) -> list[dict]:
     """Answer each question with ``method`` (``"3d"`` or ``"2.5d"``) and the parser backend
     ``parser``; returns the questions with ``parsed``, ``parse``, ``answer``, ``found``,
     ``correct``, ``reason`` (and ``frame`` for 2.5d). ``setting`` (``"tabletop"`` or
     ``"household"``: where the robot works, as its operator would configure it) picks the
-    perception's score floor.
+    perception's score floor. ``assume_present``: a question presupposes the objects it names,
+    so a noun phrase the score floor rejects is located by its best region without the floor,
+    and with ``name_only_fallback`` by the region scoring highest for it alone when no region
+    beats the generic phrases (the pushers' rule, :meth:`~agents.concept_map.ConceptMapper.locate_present`);
+    False: such a phrase is "not found" and the question wrong.
 
     Reads the scan's frames (RGB-D and pose); the label images and names only when the
     perception is privileged (:func:`~harness.maps.scan.fuse_frames`).
@@ -135,13 +146,13 @@ def answer_questions(scan: SceneScan, questions: list[dict], method: str, encode
     names = sorted({n for p in parses if p.ok for n in p.arguments})
     if method == "3d":
         mapper = fuse_frames(make_mapper(encoder, "rgbd", setting=setting), scan)
-        results = {n: mapper.locate(n) for n in names}
+        results = {n: _locate(mapper, n, assume_present, name_only_fallback) for n in names}
         return [{**q, **_answer(q, p, results, view)} for q, p in zip(questions, parses)]
     mapper = make_mapper(encoder, "rgbd", persistent=False, setting=setting)
     per_frame = []
     for frame in scan.frames:
         fuse_frames(mapper, scan, [frame])
-        per_frame.append({n: mapper.locate(n) for n in names})
+        per_frame.append({n: _locate(mapper, n, assume_present, name_only_fallback) for n in names})
     out = []
     for q, p in zip(questions, parses):
         if not p.ok:
@@ -177,7 +188,7 @@ def spatial_metrics(answered: list[dict]) -> dict:
 
 def run_spatial_scene(
     scene_id: str, method: str, encoder: str, *, frames: int | None = None, width: int = 160, height: int = 120, seed: int = 0,
-    parser: str = DEFAULT_PARSER,
+    parser: str = DEFAULT_PARSER, assume_present: bool = True, name_only_fallback: bool = True,
 ) -> tuple[dict, dict, dict]:
     """One scene, one method; returns ``(metrics, extras, timings)``. ``frames`` defaults to
     12 for tabletop scenes and 8 per room for household scenes."""
@@ -188,8 +199,10 @@ def run_spatial_scene(
     questions = generate_questions(scan, seed)
     t_scan = time.perf_counter() - t0
     answered = answer_questions(scan, questions, method, encoder, parser=parser,
-                                setting="household" if scene.rooms else "tabletop")
+                                setting="household" if scene.rooms else "tabletop", assume_present=assume_present,
+                                name_only_fallback=name_only_fallback)
     extras = {"questions": answered, "frames": n, "image_size": [width, height], "parser": parser,
+              "assume_present": assume_present, "name_only_fallback": name_only_fallback,
               "privileged": encoder in ORACLE_ENCODERS}
     timings = {"scan_s": t_scan, "answer_s": time.perf_counter() - t0 - t_scan}
     return spatial_metrics(answered), extras, timings

@@ -15,7 +15,9 @@ map. Turning cases into jobs and records is the runner's part (:mod:`harness.run
 Options taken from the run's ``agent_kwargs`` (and then part of the job's key):
 ``frames``, ``width``, ``height`` (scan size); for ``ablation``, ``proposer``
 (``"rgbd"`` by default; ``"gt"`` for ground-truth masks); for ``spatial``, ``parser`` (the
-spatial-question parser backend, ``"semantic"`` by default).
+spatial-question parser backend, ``"semantic"`` by default) and ``assume_present`` /
+``name_only_fallback`` (both true by default: a question's objects are taken to be there,
+:func:`harness.maps.spatial.answer_questions`).
 """
 
 from __future__ import annotations
@@ -163,7 +165,8 @@ _SPATIAL_METHOD = {agent: method for method, agent in METHODS.items()}
 def _score_spatial(case: MapCase, options: dict, seed: int, out_dir: str | None) -> tuple[dict, dict, dict]:
     frames = int(options["frames"]) if "frames" in options else None
     return run_spatial_scene(case.scene_id, _SPATIAL_METHOD[case.agent], case.encoder, frames=frames, seed=seed,
-                             parser=str(options.get("parser", DEFAULT_PARSER)), **_size(options))
+                             parser=str(options.get("parser", DEFAULT_PARSER)), assume_present=bool(options.get("assume_present", True)),
+                             name_only_fallback=bool(options.get("name_only_fallback", True)), **_size(options))
 
 
 MAP_SUITES: dict[str, MapSuite] = {
@@ -174,8 +177,10 @@ MAP_SUITES: dict[str, MapSuite] = {
         MapSuite("query-open", "map_query_open", ("frames", "width", "height"), _open_cases, _score_open),
         MapSuite("ablation", "map_ablation", ("frames", "width", "height", "proposer"), _ablation_cases("v1"), _score_ablation),
         MapSuite("ablation-v2", "map_ablation", ("frames", "width", "height", "proposer"), _ablation_cases("v2"), _score_ablation),
-        MapSuite("spatial", "spatial_qa", ("frames", "width", "height", "parser"), _spatial_cases("v1"), _score_spatial),
-        MapSuite("spatial-v2", "spatial_qa", ("frames", "width", "height", "parser"), _spatial_cases("v2"), _score_spatial),
+        MapSuite("spatial", "spatial_qa", ("frames", "width", "height", "parser", "assume_present", "name_only_fallback"),
+                 _spatial_cases("v1"), _score_spatial),
+        MapSuite("spatial-v2", "spatial_qa", ("frames", "width", "height", "parser", "assume_present", "name_only_fallback"),
+                 _spatial_cases("v2"), _score_spatial),
     )
 }
 """Every map suite by name."""

@@ -36,6 +36,8 @@ MAP_SUITE_OPTIONS: dict[str, Option] = {
     "height": Option.at_least(int, 120, 1),
     "proposer": Option(str, "rgbd", lambda v: bool(PerceptionSpec.parse("color", proposer=v)), "a mask proposer name"),
     "parser": Option(str, DEFAULT_PARSER, lambda v: v in SUITE_PARSERS, f"a spatial-question parser: {' or '.join(SUITE_PARSERS)}"),
+    "assume_present": Option(bool, True),
+    "name_only_fallback": Option(bool, True),
 }
 """The values the map suites' options (``agent_kwargs`` keys they read, see
 :mod:`harness.maps.suites`) accept."""

@@ -117,5 +117,9 @@ def test_locate_without_contrast_finds_a_name_that_loses_to_the_generic_phrases(
     bare = mapper.locate(name, floor=False, contrast=False)
     assert bare.found and np.linalg.norm(bare.best.median[:2] - (lo + hi)[:2] / 2) < 0.05
     assert mapper.answers[name] is bare
+    presumed = mapper.locate_present(name)
+    assert presumed.extras["presumed"] == "name_only" and len(presumed.extras["passed_over"]) == 2
+    assert np.array_equal(presumed.best.indices_n, bare.best.indices_n)
+    assert not mapper.locate_present(name, name_only=False).found
     with pytest.raises(ValueError, match="contrast=False needs floor=False"):
         mapper.locate(name, contrast=False)

@@ -201,3 +201,24 @@ def test_v2_apartment_questions_name_library_objects():
     qs = generate_questions(scan, seed=0)
     names = {o.name for o in scan.scene.objects} | {f["name"] for f in scan.graph.get("furniture", [])} | {"table"}
     assert len({q["type"] for q in qs}) >= 6 and all(q["a"] in names and q["b"] in names for q in qs)
+
+
+def test_assumed_present_objects_are_located_where_the_floor_drops_them():
+    """``assume_present`` (default on): a question's noun phrases are taken to be there, so fewer
+    end "not found" than when answered as found, and the options reach the record."""
+    from harness.runner.map_jobs import map_suite_jobs
+    from harness.runner.run import RunConfig
+
+    scene = sorted(p.stem for p in (ROOT / "scenes" / "tabletop-v2").glob("tabletop-v2-*.json"))[0]
+    recs = {}
+    for assume in (True, False):
+        opts = {"frames": 8, "width": 160, "height": 120, "assume_present": assume, "name_only_fallback": assume}
+        recs[assume] = run_map_job(MapJob(run_id="t", suite="spatial-v2", agent="map-3d", encoder="embedded-v2", scene_id=scene, options=opts))[0]
+        assert recs[assume]["status"] == "ok", recs[assume]["error"]
+        assert recs[assume]["extras"]["assume_present"] is assume
+    on, off = recs[True]["metrics"], recs[False]["metrics"]
+    assert off["notfound_rate"] > 0 and on["notfound_rate"] < off["notfound_rate"]
+    cfg = RunConfig(suites=("spatial-v2",), limit=1, agent_kwargs={"assume_present": False})
+    assert {j.options["assume_present"] for j in map_suite_jobs("spatial-v2", cfg, "r")} == {False}
+    with pytest.raises(HarnessError, match=r"assume_present=maybe"):
+        RunConfig(suites=("spatial-v2",), limit=1, agent_kwargs={"assume_present": "maybe"})
