@@ -17,7 +17,10 @@ frame is fused on its own, both parsed noun phrases are located in it with the s
 and the frame kept is the one where both are found, then where the lower of their two best
 median scores is highest (to 0.01), then where the smaller of the two regions has the most
 points. Both use the perception's score floor for the scene's setting (tabletop, or
-household for apartments: :func:`~conceptfusion.perception.featurizer.score_floor_for`). No ground-truth label or segmentation is read by either method unless the perception
+household for apartments: :func:`~conceptfusion.perception.featurizer.score_floor_for`), and
+both take the question's objects to be there (options ``assume_present`` and
+``name_only_fallback``, on by default: a noun phrase the floor rejects is located by its best
+region anyway, :meth:`~agents.concept_map.ConceptMapper.locate_present`). No ground-truth label or segmentation is read by either method unless the perception
 itself is the privileged oracle.
 
 **Scoring**: a question is correct when the answer matches the truth (distance: |d - d_gt| <=
