@@ -29,6 +29,7 @@ from __future__ import annotations
 
 import io
 import logging
+import os
 from dataclasses import dataclass
 from pathlib import Path
 from typing import Iterable, Mapping, Sequence
@@ -50,9 +51,16 @@ __all__ = [
     "CropData",
     "crops_from_view",
     "build_crop_data",
+    "default_cache_dir",
 ]
 
 logger = logging.getLogger(__name__)
+
+
+def default_cache_dir() -> str:
+    """Where the training commands cache rendered crops: ``$XDG_CACHE_HOME/conceptfusion``
+    (``~/.cache/conceptfusion`` when the variable is unset)."""
+    return os.path.join(os.environ.get("XDG_CACHE_HOME", os.path.expanduser("~/.cache")), "conceptfusion")
 
 SOURCES = ("gt", "proposer", "background", "frame")
 """Crop kinds, by the index stored in :attr:`CropData.sources`."""

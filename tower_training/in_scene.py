@@ -26,11 +26,12 @@ from __future__ import annotations
 import argparse
 import json
 import math
-import os
 import sys
 from pathlib import Path
 
 import numpy as np
+
+from tower_training.data import default_cache_dir
 
 __all__ = ["in_scene_figures", "main"]
 
@@ -80,7 +81,7 @@ def in_scene_figures(embed_fn, text_encoder, data, split, catalogue_) -> dict:
 def main(argv: list[str] | None = None) -> int:
     p = argparse.ArgumentParser(prog="python -m tower_training.in_scene", description=__doc__.splitlines()[0])
     p.add_argument("--tower-dir", default=None, help="exported tower folder (default: the shipped v2 tower)")
-    p.add_argument("--cache-dir", default=os.path.join(os.environ.get("XDG_CACHE_HOME", os.path.expanduser("~/.cache")), "conceptfusion"),
+    p.add_argument("--cache-dir", default=default_cache_dir(),
                    help="where rendered crops are cached")
     args = p.parse_args(argv)
     from conceptfusion.perception.image_tower import EmbeddedEncoder

@@ -25,7 +25,6 @@ import argparse
 import hashlib
 import json
 import logging
-import os
 import sys
 import time
 from dataclasses import asdict, dataclass, replace
@@ -33,7 +32,9 @@ from pathlib import Path
 
 import numpy as np
 
-from tower_training.data import BACKGROUND_CLASS, SCENE_CLASS, SOURCES, CropConfig, CropData, ObjectClass, instance_classes
+from tower_training.data import (
+    BACKGROUND_CLASS, SCENE_CLASS, SOURCES, CropConfig, CropData, ObjectClass, default_cache_dir, instance_classes,
+)
 from tower_training.train_v2 import main as main_v2
 
 __all__ = ["DataConfig", "HELD_OUT_INSTANCES", "HELD_OUT_CATEGORY", "vocabulary", "render_crop_data", "main"]
@@ -138,7 +139,7 @@ def _parser() -> argparse.ArgumentParser:
     p = argparse.ArgumentParser(prog="python -m tower_training.train", description=__doc__.splitlines()[0],
                                 parents=[_world_parser()])
     p.add_argument("--out", required=True, help="folder for tower.onnx and tower.json")
-    p.add_argument("--cache-dir", default=os.path.join(os.environ.get("XDG_CACHE_HOME", os.path.expanduser("~/.cache")), "conceptfusion"),
+    p.add_argument("--cache-dir", default=default_cache_dir(),
                    help="where rendered crops are cached (default: $XDG_CACHE_HOME/conceptfusion)")
     p.add_argument("--train-scenes", type=int, default=d.train_scenes)
     p.add_argument("--test-scenes", type=int, default=d.test_scenes)

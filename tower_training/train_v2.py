@@ -22,7 +22,6 @@ from __future__ import annotations
 
 import argparse
 import logging
-import os
 import sys
 import time
 from dataclasses import asdict, replace
@@ -30,7 +29,7 @@ from pathlib import Path
 
 import numpy as np
 
-from tower_training.data import SOURCES, CropData
+from tower_training.data import SOURCES, CropData, default_cache_dir
 from tower_training.world_v2 import (
     ROOM_TEST, DataConfigV2, RoomDataConfig, render_crop_data_v2, render_room_crop_data, split_summary, train_caption_bank,
 )
@@ -100,7 +99,7 @@ def _parser() -> argparse.ArgumentParser:
     p = argparse.ArgumentParser(prog="python -m tower_training.train --world v2", description=__doc__.splitlines()[0])
     p.add_argument("--world", choices=("v2",), default="v2")
     p.add_argument("--out", required=True, help="folder for tower.onnx and tower.json")
-    p.add_argument("--cache-dir", default=os.path.join(os.environ.get("XDG_CACHE_HOME", os.path.expanduser("~/.cache")), "conceptfusion"),
+    p.add_argument("--cache-dir", default=default_cache_dir(),
                    help="where rendered crops are cached (default: $XDG_CACHE_HOME/conceptfusion)")
     p.add_argument("--train-scenes", type=int, default=d.train_scenes)
     p.add_argument("--val-scenes", type=int, default=d.val_scenes)
