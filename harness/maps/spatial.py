@@ -45,10 +45,11 @@ from conceptfusion.perception.featurizer import ORACLE_ENCODERS
 from conceptfusion.spatial.comparators import get_comparator
 from harness.maps.scan import SceneScan, fuse_frames, load_shipped_scene, scan_scene
 from harness.maps.spatial_questions import PER_SCENE, QUESTION_TYPES, askable, generate_questions
+from sim_envs.scenes.format import Scene
 
 __all__ = [
     "QUESTION_TYPES", "PER_SCENE", "METHODS", "DEFAULT_PARSER", "SUITE_PARSERS", "generate_questions", "askable", "parse_outcome",
-    "answer_questions", "run_spatial_scene", "distance_ok", "spatial_metrics",
+    "answer_questions", "run_spatial_scene", "score_spatial_scene", "distance_ok", "spatial_metrics",
 ]
 
 METHODS = {"3d": "map-3d", "2.5d": "frame-2.5d"}
@@ -193,10 +194,18 @@ def run_spatial_scene(
     scene_id: str, method: str, encoder: str, *, frames: int | None = None, width: int = 160, height: int = 120, seed: int = 0,
     parser: str = DEFAULT_PARSER, assume_present: bool = True, name_only_fallback: bool = True,
 ) -> tuple[dict, dict, dict]:
-    """One scene, one method; returns ``(metrics, extras, timings)``. ``frames`` defaults to
-    12 for tabletop scenes and 8 per room for household scenes."""
+    """One shipped scene, one method: :func:`score_spatial_scene` of ``load_shipped_scene(scene_id)``."""
+    return score_spatial_scene(load_shipped_scene(scene_id), method, encoder, frames=frames, width=width, height=height, seed=seed,
+                               parser=parser, assume_present=assume_present, name_only_fallback=name_only_fallback)
+
+
+def score_spatial_scene(
+    scene: Scene, method: str, encoder: str, *, frames: int | None = None, width: int = 160, height: int = 120, seed: int = 0,
+    parser: str = DEFAULT_PARSER, assume_present: bool = True, name_only_fallback: bool = True,
+) -> tuple[dict, dict, dict]:
+    """One scene, one method: scan, questions, answers; returns ``(metrics, extras, timings)``.
+    ``frames`` defaults to 12 for tabletop scenes and 8 per room for household scenes."""
     t0 = time.perf_counter()
-    scene = load_shipped_scene(scene_id)
     n = frames if frames is not None else (8 * len(scene.rooms) if scene.rooms else 12)
     scan = scan_scene(scene, frames=n, width=width, height=height)
     questions = generate_questions(scan, seed)

@@ -23,18 +23,14 @@ SETTINGS = {"assumed present": True, "as found": False}
 
 
 def answer_calibration_scene(args: tuple[str, str, str, bool]) -> tuple[str, str, bool, list[tuple[str, bool]]]:
-    """``(scene file, method, encoder, assume)`` -> the same with ``(comparator, correct)`` per question."""
-    from harness.maps.scan import scan_scene
-    from harness.maps.spatial import answer_questions
-    from harness.maps.spatial_questions import generate_questions
+    """``(scene file, method, encoder, assume)`` -> the same with ``(comparator, correct)`` per question,
+    scored as the suite scores a scene (:func:`~harness.maps.spatial.score_spatial_scene`, its defaults)."""
+    from harness.maps.spatial import score_spatial_scene
     from sim_envs.scenes.format import load_scene
 
     path, method, encoder, assume = args
-    scene = load_scene(path)
-    scan = scan_scene(scene, frames=8 * len(scene.rooms) if scene.rooms else 12, width=160, height=120)
-    answered = answer_questions(scan, generate_questions(scan, 0), method, encoder, setting="household" if scene.rooms else "tabletop",
-                                assume_present=assume, name_only_fallback=assume)
-    return path, method, assume, [(q["type"], bool(q["correct"])) for q in answered]
+    _, extras, _ = score_spatial_scene(load_scene(path), method, encoder, assume_present=assume, name_only_fallback=assume)
+    return path, method, assume, [(q["type"], bool(q["correct"])) for q in extras["questions"]]
 
 
 def main(argv: list[str] | None = None) -> int:

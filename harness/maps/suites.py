@@ -165,8 +165,8 @@ _SPATIAL_METHOD = {agent: method for method, agent in METHODS.items()}
 def _score_spatial(case: MapCase, options: dict, seed: int, out_dir: str | None) -> tuple[dict, dict, dict]:
     frames = int(options["frames"]) if "frames" in options else None
     return run_spatial_scene(case.scene_id, _SPATIAL_METHOD[case.agent], case.encoder, frames=frames, seed=seed,
-                             parser=str(options.get("parser", DEFAULT_PARSER)), assume_present=bool(options.get("assume_present", True)),
-                             name_only_fallback=bool(options.get("name_only_fallback", True)), **_size(options))
+                             parser=str(options.get("parser", DEFAULT_PARSER)),
+                             **{k: bool(options[k]) for k in ("assume_present", "name_only_fallback") if k in options}, **_size(options))
 
 
 MAP_SUITES: dict[str, MapSuite] = {
