@@ -108,17 +108,18 @@ _PERCEPTION = {
     "proposer": Option(str, "rgbd", _known_proposer, "a mask proposer name"),
 }
 _SEED = Option.at_least(int, 0, 0)
+_PRESENCE = {"assume_present": Option(bool, True), "name_only_fallback": Option(bool, True)}
+"""The pushers' options for objects their instruction names (:class:`~agents.pusher.PusherConfig`)."""
 
 register_agent(AgentSpec(
     "map-pusher", _map_pusher, "tabletop_rearrange",
     "ConceptFusion map from an orbit scan; pushes each named object's median across the line; re-checks and retries",
-    {**_PERCEPTION, "scan": Option(bool, True), "assume_present": Option(bool, True), "name_only_fallback": Option(bool, True)},
-    uses_map=True,
+    {**_PERCEPTION, "scan": Option(bool, True), **_PRESENCE}, uses_map=True,
 ))
 register_agent(AgentSpec(
     "frame-pusher", _frame_pusher, "tabletop_rearrange",
     "single-frame (2.5D) pusher: the same perception on the current camera frame only, no map",
-    {**_PERCEPTION, "assume_present": Option(bool, True), "name_only_fallback": Option(bool, True)},
+    {**_PERCEPTION, **_PRESENCE},
 ))
 register_agent(AgentSpec(
     "random-pusher", "agents.baselines:RandomPusher", "tabletop_rearrange",
