@@ -58,7 +58,7 @@ from sim_envs.scenes.splits import SPLIT_GROUPS, object_group, splits
 
 __all__ = [
     "QUERY_KINDS", "SPLIT_GROUPS", "DEFAULT_SCENES", "SCENE_FOLDER", "open_scene_ids", "load_open_scene", "object_group",
-    "open_queries", "run_open_query_scene", "pooled_table", "format_table", "main",
+    "open_queries", "run_open_query_scene", "score_open_query_scene", "pooled_table", "format_table", "main",
 ]
 
 QUERY_KINDS = ("name", "synonym", "parent", "colour", "material", "function", "absent")
@@ -145,12 +145,29 @@ def _means(entries: list[dict]) -> dict:
 
 def run_open_query_scene(scene_id: str, encoder: str, *, frames: int = 12, width: int = 160, height: int = 120,
                          seed: int = 0) -> tuple[dict, dict, dict]:
-    """Run the suite on one v2 tabletop with one encoder; returns ``(metrics, extras, timings)``.
-
-    ``extras["queries"]``: one entry per query (kind, text, group, objects, iou, found, score).
-    """
+    """Run the suite on one shipped v2 tabletop with one encoder: :func:`score_open_query_scene`
+    of :func:`load_open_scene`; returns ``(metrics, extras, timings)``."""
     t0 = time.perf_counter()
     scene = load_open_scene(scene_id)
+    metrics, extras, timings = score_open_query_scene(scene, encoder, frames=frames, width=width, height=height, seed=seed)
+    timings["scan_s"] += time.perf_counter() - t0 - sum(timings.values())  # the scene file's load, as before
+    extras["scene"] = str(Path("tabletop-v2") / f"{scene_id}.json")
+    return metrics, extras, timings
+
+
+def score_open_query_scene(scene: Scene, encoder: str, *, frames: int = 12, width: int = 160, height: int = 120,
+                           seed: int = 0, floor: bool = True, all_regions: bool = False) -> tuple[dict, dict, dict]:
+    """Scan a loaded v2 tabletop, fuse a map with ``encoder`` and score its queries
+    (:func:`open_queries`); returns ``(metrics, extras, timings)``.
+
+    ``extras["queries"]``: one entry per query (kind, text, group, objects, iou, found, score).
+    ``floor=False`` asks without the encoder's score floor (regions need only beat the generic
+    phrases); ``all_regions`` adds ``regions`` to each found entry: ``[median score, IoU]`` of every
+    region in the answer's order (``[median score]`` for absent queries), from which the floored
+    answer at any floor follows (the first region whose median reaches it), for choosing a floor
+    on calibration tables (:mod:`harness.maps.query_open_develop`).
+    """
+    t0 = time.perf_counter()
     scan = scan_scene(scene, frames=frames, width=width, height=height)
     t_scan = time.perf_counter() - t0
     mapper = fuse_frames(make_mapper(encoder, "rgbd"), scan)
@@ -160,14 +177,19 @@ def run_open_query_scene(scene_id: str, encoder: str, *, frames: int = 12, width
     index = {o.id: i for i, o in enumerate(scene.objects)}
     entries, absent, unseen = [], [], 0
     for q in open_queries(scene, seed):
-        res = mapper.locate(q["text"])
+        res = mapper.locate(q["text"], floor=floor)
         entry = {**q, "found": bool(res.found), "score": round(float(res.best.score), 4) if res.found else None}
-        if q["kind"] == "absent":
+        truth = None
+        if q["kind"] != "absent":
+            truth = np.isin(gt, [index[i] for i in q["objects"]])
+            if not truth.any():
+                unseen += 1
+                continue
+        if all_regions and res.found:
+            entry["regions"] = [[round(float(np.median(r.scores_n)), 4)]
+                                + ([] if truth is None else [round(iou(_mask(r, len(pts)), truth), 4)]) for r in res.regions]
+        if truth is None:
             absent.append(entry)
-            continue
-        truth = np.isin(gt, [index[i] for i in q["objects"]])
-        if not truth.any():
-            unseen += 1
             continue
         region, _ = select_points(res, len(pts), _REL)
         entry["iou"] = round(iou(region, truth), 4)
@@ -184,9 +206,15 @@ def run_open_query_scene(scene_id: str, encoder: str, *, frames: int = 12, width
         "n_queries": len(entries), "n_absent": len(absent), "n_unseen": unseen, "map_points": int(len(pts)),
     })
     extras = {"queries": entries + absent, "frames": frames, "image_size": [width, height],
-              "privileged": bool(mapper.privileged), "scene": str(Path("tabletop-v2") / f"{scene_id}.json")}
+              "privileged": bool(mapper.privileged), "scene": scene.id}
     timings = {"scan_s": t_scan, "fuse_s": t_fuse, "query_s": time.perf_counter() - t0 - t_scan - t_fuse}
     return metrics, extras, timings
+
+
+def _mask(region, n: int) -> np.ndarray:
+    out = np.zeros(n, bool)
+    out[region.indices_n] = True
+    return out
 
 
 def pooled_table(records: list[dict]) -> dict[tuple[str, str, str], dict]:

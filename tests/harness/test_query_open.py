@@ -7,8 +7,10 @@ import pytest
 
 from harness.maps.query_open import (
     QUERY_KINDS, SPLIT_GROUPS, load_open_scene, object_group, open_queries, open_scene_ids, pooled_table,
-    run_open_query_scene,
+    run_open_query_scene, score_open_query_scene,
 )
+from harness.maps.query_open_develop import CALIBRATION_DIR, answer_at, floor_table
+from sim_envs.scenes.format import load_scene
 from harness.runner.map_jobs import map_suite_jobs
 from harness.runner.run import RunConfig
 from sim_envs.assets.library import instance_of_asset
@@ -86,6 +88,44 @@ def test_oracle_scene_scores_and_pooled_table_recomputes_them():
         assert row["miou"] == pytest.approx(metrics[f"{kind}_miou"])
     assert table[("oracle", "absent", "all")] == {"fp_rate": 0.0, "n": 3}
     assert table[("oracle", "all", "all")]["n"] == len(present)
+
+
+def test_unfloored_regions_give_the_floored_answers_of_any_floor():
+    """The calibration-table tool (``query_open_develop``) replays every floor from one unfloored
+    pass: its answer at the encoder's floor is the suite's floored answer, query by query."""
+    scene = load_scene(sorted(CALIBRATION_DIR.glob("tabletop-v2-*.json"))[0])
+    kw = dict(frames=5, width=96, height=72)
+    _, floored, _ = score_open_query_scene(scene, "embedded-v2", **kw)
+    _, loose, _ = score_open_query_scene(scene, "embedded-v2", floor=False, all_regions=True, **kw)
+    from agents.builtin import make_mapper
+
+    floor = make_mapper("embedded-v2", "rgbd").config.min_score
+    assert floor is not None
+    pairs = list(zip(floored["queries"], loose["queries"]))
+    assert pairs and all(a["text"] == b["text"] for a, b in pairs)
+    for a, b in pairs:
+        found, iou_ = answer_at(b, floor)
+        assert found == a["found"], a["text"]
+        if a["kind"] != "absent":
+            assert iou_ == pytest.approx(a["iou"], abs=1e-4), a["text"]
+            assert answer_at(b, None) == (b["found"], pytest.approx(b["iou"], abs=1e-4))
+    # without a floor at least as much is found
+    assert sum(b["found"] for _, b in pairs) >= sum(a["found"] for a, _ in pairs)
+    table = floor_table(loose["queries"], floor)
+    present = [a for a, _ in pairs if a["kind"] != "absent"]
+    assert table["all"]["n"] == len(present)
+    assert table["all"]["miou"] == pytest.approx(np.mean([a["iou"] for a in present]), abs=1e-4)
+    assert table["absent_found"] == pytest.approx(np.mean([a["found"] for a, _ in pairs if a["kind"] == "absent"]))
+
+
+def test_answer_at_takes_the_first_region_reaching_the_floor():
+    entry = {"kind": "name", "regions": [[0.30, 0.1], [0.40, 0.8], [0.50, 0.6]]}
+    assert answer_at(entry, None) == (True, 0.1)
+    assert answer_at(entry, 0.35) == (True, 0.8)
+    assert answer_at(entry, 0.45) == (True, 0.6)
+    assert answer_at(entry, 0.6) == (False, 0.0)
+    assert answer_at({"kind": "absent", "regions": [[0.4]]}, 0.3) == (True, 0.0)
+    assert answer_at({"kind": "name", "found": False}, None) == (False, 0.0)
 
 
 def test_suite_jobs_default_to_the_v2_tower_and_keep_an_explicit_encoder():
