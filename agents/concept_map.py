@@ -207,7 +207,13 @@ class ConceptMapper:
         floor (it must still beat the generic phrases); else, with ``name_only``, the region that
         scores highest for ``text`` alone (``contrast=False``); else the floored answer.
         ``extras["presumed"]`` says which: absent for the floored answer, ``"under_floor"`` or
-        ``"name_only"``, with ``extras["passed_over"]`` the reasons of the answers passed over."""
+        ``"name_only"``, with ``extras["passed_over"]`` the reasons of the answers passed over.
+        :attr:`answers` records the answer returned, not the last one asked on the way."""
+        answer = self._present(text, name_only)
+        self._answers[text] = answer
+        return answer
+
+    def _present(self, text: str, name_only: bool) -> QueryResult:
         res = self.locate(text)
         if res.found:
             return res

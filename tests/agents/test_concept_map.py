@@ -120,6 +120,8 @@ def test_locate_without_contrast_finds_a_name_that_loses_to_the_generic_phrases(
     presumed = mapper.locate_present(name)
     assert presumed.extras["presumed"] == "name_only" and len(presumed.extras["passed_over"]) == 2
     assert np.array_equal(presumed.best.indices_n, bare.best.indices_n)
-    assert not mapper.locate_present(name, name_only=False).found
+    assert mapper.answers[name] is presumed  # what was returned, with its extras
+    refused = mapper.locate_present(name, name_only=False)
+    assert not refused.found and mapper.answers[name] is refused and "floor" not in refused.reason
     with pytest.raises(ValueError, match="contrast=False needs floor=False"):
         mapper.locate(name, contrast=False)
