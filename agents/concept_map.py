@@ -209,24 +209,20 @@ class ConceptMapper:
         ``extras["presumed"]`` says which: absent for the floored answer, ``"under_floor"`` or
         ``"name_only"``, with ``extras["passed_over"]`` the reasons of the answers passed over.
         :attr:`answers` records the answer returned, not the last one asked on the way."""
-        answer = self._present(text, name_only)
+        answer = self.locate(text)
+        if not answer.found:
+            reasons = [answer.reason]
+            loose = self.locate(text, floor=False)
+            bare = None
+            if not loose.found:
+                reasons.append(loose.reason)
+                bare = self.locate(text, floor=False, contrast=False) if name_only else None
+            if loose.found:
+                answer = dataclasses.replace(loose, extras={**loose.extras, "presumed": "under_floor", "passed_over": reasons})
+            elif bare is not None and bare.found:
+                answer = dataclasses.replace(bare, extras={**bare.extras, "presumed": "name_only", "passed_over": reasons})
         self._answers[text] = answer
         return answer
-
-    def _present(self, text: str, name_only: bool) -> QueryResult:
-        res = self.locate(text)
-        if res.found:
-            return res
-        reasons = [res.reason]
-        loose = self.locate(text, floor=False)
-        if loose.found:
-            return dataclasses.replace(loose, extras={**loose.extras, "presumed": "under_floor", "passed_over": reasons})
-        reasons.append(loose.reason)
-        if name_only:
-            bare = self.locate(text, floor=False, contrast=False)
-            if bare.found:
-                return dataclasses.replace(bare, extras={**bare.extras, "presumed": "name_only", "passed_over": reasons})
-        return res
 
     def _locate(self, text: str, floor: bool = True, contrast: bool = True) -> QueryResult:
         c = self.config

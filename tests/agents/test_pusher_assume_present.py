@@ -34,6 +34,7 @@ class _UnderTheFloor:
         pts, self.mug = _table_and_mug()
         self.map = type("M", (), {"points": pts})()
         self.asked: list[tuple[str, bool]] = []
+        self._answers: dict = {}  # where ConceptMapper.locate_present records what it returns
 
     locate_present = ConceptMapper.locate_present  # the real fallback chain over this locate
 
