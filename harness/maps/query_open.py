@@ -57,7 +57,7 @@ from sim_envs.scenes.format import Scene, load_scene
 from sim_envs.scenes.splits import SPLIT_GROUPS, object_group, splits
 
 __all__ = [
-    "QUERY_KINDS", "SPLIT_GROUPS", "DEFAULT_SCENES", "SCENE_FOLDER", "open_scene_ids", "load_open_scene", "object_group",
+    "QUERY_KINDS", "SPLIT_GROUPS", "DEFAULT_SCENES", "SCENE_FOLDER", "SCAN_SIZE", "open_scene_ids", "load_open_scene", "object_group",
     "open_queries", "run_open_query_scene", "score_open_query_scene", "pooled_table", "format_table", "main",
 ]
 
@@ -69,6 +69,14 @@ DEFAULT_SCENES = 24
 
 SCENE_FOLDER = SCENES_ROOT / "tabletop-v2"
 """Where its scenes come from."""
+
+SCAN_SIZE = (320, 240)
+"""Width and height of the suite's scan frames (12 frames of an orbit). Chosen on calibration
+tables (:mod:`harness.maps.query_open_develop`, embedded-v2, 24 tables): present-query mIoU at the
+tower's floor 0.44 at 160x120 (the agents' size, the suite's default before 3 December), 0.51 at
+320x240, 0.49 at 320x240 with 24 frames; the answers found cover their objects better at the
+higher resolution (IoU 0.69 -> 0.73). ``--agent-option width=160 --agent-option height=120``
+gives the previous scans."""
 
 _ABSENT_PER_SCENE = 3
 _REL = 0.6
@@ -143,7 +151,7 @@ def _means(entries: list[dict]) -> dict:
             "found_rate": float(np.mean([e["found"] for e in entries])), "n": len(entries)}
 
 
-def run_open_query_scene(scene_id: str, encoder: str, *, frames: int = 12, width: int = 160, height: int = 120,
+def run_open_query_scene(scene_id: str, encoder: str, *, frames: int = 12, width: int = SCAN_SIZE[0], height: int = SCAN_SIZE[1],
                          seed: int = 0) -> tuple[dict, dict, dict]:
     """Run the suite on one shipped v2 tabletop with one encoder: :func:`score_open_query_scene`
     of :func:`load_open_scene`; returns ``(metrics, extras, timings)``."""
@@ -155,7 +163,7 @@ def run_open_query_scene(scene_id: str, encoder: str, *, frames: int = 12, width
     return metrics, extras, timings
 
 
-def score_open_query_scene(scene: Scene, encoder: str, *, frames: int = 12, width: int = 160, height: int = 120,
+def score_open_query_scene(scene: Scene, encoder: str, *, frames: int = 12, width: int = SCAN_SIZE[0], height: int = SCAN_SIZE[1],
                            seed: int = 0, floor: bool = True, all_regions: bool = False) -> tuple[dict, dict, dict]:
     """Scan a loaded v2 tabletop, fuse a map with ``encoder`` and score its queries
     (:func:`open_queries`); returns ``(metrics, extras, timings)``.

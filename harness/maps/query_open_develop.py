@@ -1,6 +1,7 @@
 """``query-open`` on calibration tables: what the score floor costs, measured where settings are chosen.
 
-``python -m harness.maps.query_open_develop [--tables N] [--encoder SPEC] [--workers N]`` asks the
+``python -m harness.maps.query_open_develop [--tables N] [--encoder SPEC] [--frames N --width W
+--height H]`` asks the
 ``query-open`` queries (:func:`harness.maps.query_open.open_queries`: six kinds of phrase per
 object, three absent categories per table) over maps of the first N v2 calibration tables
 (``scenes/calibration-v2/``: calibration seeds, TRAIN instances only, no evaluation scene), with
@@ -29,19 +30,23 @@ from pathlib import Path
 
 import numpy as np
 
+from harness.maps.query_open import SCAN_SIZE
+
 __all__ = ["calibration_queries", "answer_at", "floor_table", "main"]
 
 CALIBRATION_DIR = Path(__file__).resolve().parents[2] / "scenes" / "calibration-v2"
 _KINDS = ("name", "synonym", "parent", "colour", "material", "function")
 
 
-def calibration_queries(args: tuple[str, str]) -> list[dict]:
-    """``(scene file, encoder)`` -> the scene's query entries without the floor, with ``regions``."""
+def calibration_queries(args: tuple[str, str, int, int, int]) -> list[dict]:
+    """``(scene file, encoder, frames, width, height)`` -> the scene's query entries without the
+    floor, with ``regions``."""
     from harness.maps.query_open import score_open_query_scene
     from sim_envs.scenes.format import load_scene
 
-    path, encoder = args
-    _, extras, _ = score_open_query_scene(load_scene(path), encoder, floor=False, all_regions=True)
+    path, encoder, frames, width, height = args
+    _, extras, _ = score_open_query_scene(load_scene(path), encoder, frames=frames, width=width, height=height,
+                                          floor=False, all_regions=True)
     return extras["queries"]
 
 
@@ -88,9 +93,13 @@ def main(argv: list[str] | None = None) -> int:
     p.add_argument("--tables", type=int, default=24, help="first N calibration tables (default: as many as the suite's 24)")
     p.add_argument("--encoder", default="embedded-v2")
     p.add_argument("--workers", type=int, default=2)
+    p.add_argument("--frames", type=int, default=12, help="scan frames (the suite's default: 12)")
+    p.add_argument("--width", type=int, default=SCAN_SIZE[0], help=f"scan width (the suite's default: {SCAN_SIZE[0]})")
+    p.add_argument("--height", type=int, default=SCAN_SIZE[1], help=f"scan height (the suite's default: {SCAN_SIZE[1]})")
     args = p.parse_args(argv)
-    if args.tables < 1 or args.workers < 1:
-        p.error(f"expected --tables >= 1 and --workers >= 1, got {args.tables}, {args.workers}")
+    if min(args.tables, args.workers, args.frames) < 1 or min(args.width, args.height) < 8:
+        p.error(f"expected --tables, --workers, --frames >= 1 and an image of at least 8x8, got {args.tables}, "
+                f"{args.workers}, {args.frames}, {args.width}x{args.height}")
     from agents.builtin import make_mapper
     from tower_training.score_floor import choose_floor
 
@@ -98,11 +107,12 @@ def main(argv: list[str] | None = None) -> int:
     if not scenes:
         p.error(f"no calibration tables in {CALIBRATION_DIR}")
     with ProcessPoolExecutor(args.workers) as pool:
-        entries = [e for qs in pool.map(calibration_queries, [(str(s), args.encoder) for s in scenes]) for e in qs]
+        entries = [e for qs in pool.map(calibration_queries, [(str(s), args.encoder, args.frames, args.width, args.height) for s in scenes]) for e in qs]
     floor = make_mapper(args.encoder, "rgbd").config.min_score
     present = [_best(e) for e in entries if e["kind"] != "absent"]
     absent = [_best(e) for e in entries if e["kind"] == "absent"]
-    print(f"{len(scenes)} calibration tables, encoder {args.encoder}: {len(present)} present queries, {len(absent)} absent")
+    print(f"{len(scenes)} calibration tables, {args.frames} frames at {args.width}x{args.height}, encoder {args.encoder}: "
+          f"{len(present)} present queries, {len(absent)} absent")
     print(f"ROC AUC of the best region's median score, present vs absent: {_auc(present, absent):.3f}")
     chosen = choose_floor(present, absent)
     print(f"floor by balanced accuracy on these queries: {chosen:.3f}; the encoder's floor: {floor}")

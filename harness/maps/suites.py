@@ -13,7 +13,8 @@ variant) with ``agent=<variant>``; ``spatial`` per (scene, method) with ``agent=
 map. Turning cases into jobs and records is the runner's part (:mod:`harness.runner.map_jobs`).
 
 Options taken from the run's ``agent_kwargs`` (and then part of the job's key):
-``frames``, ``width``, ``height`` (scan size); for ``ablation``, ``proposer``
+``frames``, ``width``, ``height`` (scan size: 12 frames of 160x120, ``query-open`` 320x240,
+:data:`harness.maps.query_open.SCAN_SIZE`); for ``ablation``, ``proposer``
 (``"rgbd"`` by default; ``"gt"`` for ground-truth masks); for ``spatial``, ``parser`` (the
 spatial-question parser backend, ``"semantic"`` by default) and ``assume_present`` /
 ``name_only_fallback`` (both true by default: a question's objects are taken to be there,
@@ -30,7 +31,7 @@ from conceptfusion.names import lookup
 from conceptfusion.perception.featurizer import ORACLE_ENCODERS, make_featurizer
 from harness.maps.ablation import VARIANTS, run_ablation_scene
 from harness.maps.query import run_query_scene
-from harness.maps.query_open import open_scene_ids, run_open_query_scene
+from harness.maps.query_open import SCAN_SIZE as OPEN_SCAN_SIZE, open_scene_ids, run_open_query_scene
 from harness.maps.scan import shipped_scene_ids
 from harness.maps.spatial import DEFAULT_PARSER, METHODS, run_spatial_scene
 from sim_envs.scenes.splits import splits
@@ -105,8 +106,8 @@ def heatmap_file(out_dir: str | Path, case: MapCase, seed: int) -> Path:
     return Path(out_dir) / "heatmaps" / f"query-{case.scene_id}-{case.encoder}-seed{seed}.npz"
 
 
-def _size(options: dict) -> dict:
-    return {"width": int(options.get("width", 160)), "height": int(options.get("height", 120))}
+def _size(options: dict, default: tuple[int, int] = (160, 120)) -> dict:
+    return {"width": int(options.get("width", default[0])), "height": int(options.get("height", default[1]))}
 
 
 WORLD_KINDS = {"v1": ("tabletop", "household"), "v2": ("tabletop-v2", "household-v2")}
@@ -156,7 +157,8 @@ def _score_ablation(case: MapCase, options: dict, seed: int, out_dir: str | None
 
 
 def _score_open(case: MapCase, options: dict, seed: int, out_dir: str | None) -> tuple[dict, dict, dict]:
-    return run_open_query_scene(case.scene_id, case.encoder, frames=int(options.get("frames", 12)), seed=seed, **_size(options))
+    return run_open_query_scene(case.scene_id, case.encoder, frames=int(options.get("frames", 12)), seed=seed,
+                                **_size(options, OPEN_SCAN_SIZE))
 
 
 _SPATIAL_METHOD = {agent: method for method, agent in METHODS.items()}
