@@ -26,16 +26,15 @@ from __future__ import annotations
 import argparse
 import sys
 from concurrent.futures import ProcessPoolExecutor
-from pathlib import Path
 
 import numpy as np
 
-from harness.maps.query_open import SCAN_SIZE
+from harness.maps.query_open import QUERY_KINDS, SCAN_SIZE
+from harness.maps.spatial_develop import CALIBRATION_DIR
 
 __all__ = ["calibration_queries", "answer_at", "floor_table", "main"]
 
-CALIBRATION_DIR = Path(__file__).resolve().parents[2] / "scenes" / "calibration-v2"
-_KINDS = ("name", "synonym", "parent", "colour", "material", "function")
+_KINDS = QUERY_KINDS[:-1]  # every kind but "absent"
 
 
 def calibration_queries(args: tuple[str, str, int, int, int]) -> list[dict]:

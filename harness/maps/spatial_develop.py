@@ -14,11 +14,13 @@ import argparse
 import sys
 from collections import defaultdict
 from concurrent.futures import ProcessPoolExecutor
-from pathlib import Path
+
+from sim_envs.scenes.episodes import SCENES_ROOT
 
 __all__ = ["answer_calibration_scene", "main"]
 
-CALIBRATION_DIR = Path(__file__).resolve().parents[2] / "scenes" / "calibration-v2"
+CALIBRATION_DIR = SCENES_ROOT / "calibration-v2"
+"""The v2 calibration scenes (``python -m scenes.make_calibration_v2``), where map-suite settings are chosen."""
 SETTINGS = {"assumed present": True, "as found": False}
 
 
