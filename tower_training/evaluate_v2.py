@@ -35,7 +35,7 @@ from sim_envs.scenes.splits import Splits
 from tower_training.captions import article
 from tower_training.data import BACKGROUND_CLASS, SOURCES, CropData
 
-__all__ = ["crop_sets", "topk", "half_res", "evaluate_crops_v2", "val_selection_fn"]
+__all__ = ["crop_sets", "topk", "half_res", "evaluate_crops_v2", "val_selection_inputs", "val_selection_fn"]
 
 
 def topk(emb_nd: np.ndarray, texts_td: np.ndarray, correct_nt: np.ndarray, k: int = 1) -> float:
@@ -88,30 +88,34 @@ def half_res(images) -> list[np.ndarray]:
     return [shrink(im, 2.0) for im in images]
 
 
+def val_selection_inputs(text_encoder, data: CropData, split: Splits, val_seeds: list[int]):
+    """What the model-selection score needs: every validation crop (VAL instances of train
+    categories and VAL categories, VAL views only), its category's row among all library
+    category names (sorted), and those names' text embeddings.
+
+    Shape:
+        -> (n crops (h_i, w_i, 3) uint8, truth (n,) int64, names (91, d) float32).
+    """
+    cat = catalogue()
+    sets = crop_sets(data, split, {"val": val_seeds, "test": []})
+    idx = np.flatnonzero(sets["val_instances"] | sets["val_categories"])
+    cats = sorted(cat.categories)
+    t_names = np.asarray(text_encoder.encode_text(cats), np.float32)
+    truth = np.array([cats.index(cat.instances[data.class_names[data.labels[i]]].category) for i in idx], np.int64)
+    return [data.images[i] for i in idx], truth, t_names
+
+
 def val_selection_fn(text_encoder, data: CropData, split: Splits, val_seeds: list[int], *,
                      half_res_too: bool = False) -> Callable:
     """``select(embed_fn) -> float``: name top-1 among all library category names over every
-    validation crop (VAL instances of train categories and VAL categories, VAL views only);
+    validation crop (:func:`val_selection_inputs`, :func:`tower_training.training.name_top1`);
     with ``half_res_too``, the mean of that and the same figure on the crops at half resolution
     (:func:`half_res`)."""
-    cat = catalogue()
-    sets = crop_sets(data, split, {"val": val_seeds, "test": []})
-    mask = sets["val_instances"] | sets["val_categories"]
-    idx = np.flatnonzero(mask)
-    cats = sorted(cat.categories)
-    t_names = np.asarray(text_encoder.encode_text(cats), np.float32)
-    truth = np.array([cats.index(cat.instances[data.class_names[data.labels[i]]].category) for i in idx])
-    image_sets = [[data.images[i] for i in idx]]
-    if half_res_too:
-        image_sets.append(half_res(image_sets[0]))
+    from tower_training.training import name_top1
 
-    def select(embed_fn) -> float:
-        if not len(idx):
-            return float("nan")
-        hits = [np.mean(np.argmax(np.asarray(embed_fn(ims), np.float32) @ t_names.T, axis=1) == truth) for ims in image_sets]
-        return float(np.mean(hits))
-
-    return select
+    images, truth, t_names = val_selection_inputs(text_encoder, data, split, val_seeds)
+    image_sets = [images] + ([half_res(images)] if half_res_too else [])
+    return lambda embed_fn: name_top1(embed_fn, image_sets, truth, t_names)
 
 
 def evaluate_crops_v2(embed_fn, text_encoder, data: CropData, split: Splits, set_seeds: dict[str, list[int]],

@@ -43,15 +43,20 @@ CAPTION_WEIGHTS = {"name": 2.0, "synonym": 1.0, "parent": 0.5, "colour": 1.0, "m
 """Weight of each caption kind as a positive in the loss (a name counts twice, a broad parent half)."""
 
 
-def tower_metrics(embed_fn, text_encoder, data: CropData, room_test: CropData, split, data_cfg: DataConfigV2) -> dict:
+def tower_metrics(embed_fn, text_encoder, data: CropData, room_test: CropData, split, data_cfg: DataConfigV2, *,
+                  include_test: bool = True) -> dict:
     """Every figure of the model card: :func:`~tower_training.evaluate_v2.evaluate_crops_v2` on
     the table views (validation and test sets of ``data_cfg``), then on the held-out apartment
     views (:data:`~tower_training.world_v2.ROOM_TEST`) with keys prefixed ``room_test/`` (its
-    background figure left out: the candidate is the table's background phrase)."""
+    background figure left out: the candidate is the table's background phrase).
+    ``include_test=False``: the validation figures only (no test crop is embedded)."""
     from tower_training.evaluate_v2 import evaluate_crops_v2
 
     out = evaluate_crops_v2(embed_fn, text_encoder, data, split, {"val": data_cfg.seeds("val", split),
-                                                                  "test": data_cfg.seeds("test", split)})
+                                                                  "test": data_cfg.seeds("test", split)},
+                            include_test=include_test)
+    if not include_test:
+        return out
     rooms = evaluate_crops_v2(embed_fn, text_encoder, room_test, split, {"val": [], "test": ROOM_TEST.scene_seeds(split)})
     out.update({f"room_test/{k}": v for k, v in rooms.items() if not k.startswith(("val_", "background"))})
     return out
@@ -94,6 +99,22 @@ def _evaluate_only(tower_dir: Path, data: CropData, room_test: CropData, split, 
     return 0
 
 
+def _write_bundle(path, train, captions, bank, weights, text, data, split, val_seeds, meta: dict) -> int:
+    """``--bundle``: the training bundle (:mod:`tower_training.bundle`) of these crops and captions."""
+    from tower_training.bundle import Bundle, save_bundle
+    from tower_training.evaluate_v2 import val_selection_inputs
+
+    val_images, val_truth, names = val_selection_inputs(text, data, split, val_seeds)
+    from sim_envs.assets.library import catalogue
+
+    meta = {**meta, "class_names": list(bank.class_names), "captions": list(bank.texts), "caption_kinds": list(bank.kinds),
+            "caption_weights": CAPTION_WEIGHTS, "category_names": sorted(catalogue().categories)}
+    out = save_bundle(path, Bundle(train, captions, bank.positives, weights, val_images, val_truth, names, meta))
+    print(f"bundle written to {out} ({out.stat().st_size / 1e6:.1f} MB: {len(train.labels)} training crops, "
+          f"{len(bank.texts)} captions, {len(val_truth)} validation crops)")
+    return 0
+
+
 def _parser() -> argparse.ArgumentParser:
     d = DataConfigV2()
     p = argparse.ArgumentParser(prog="python -m tower_training.train --world v2", description=__doc__.splitlines()[0])
@@ -124,6 +145,15 @@ def _parser() -> argparse.ArgumentParser:
     p.add_argument("--init", default=None, metavar="TOWER_DIR",
                    help="start from the weights of an exported tower (its tower.onnx; e.g. the v1 tower) "
                         "with frozen folded batch norms, instead of a random initialisation")
+    p.add_argument("--bundle", default=None, metavar="FILE",
+                   help="train nothing: write the training bundle (crops, caption embeddings, validation set) "
+                        "for python -m tower_training.fit, e.g. on a machine with a GPU")
+    p.add_argument("--validation-only", action="store_true",
+                   help="measure the validation sets only (no test crop is embedded): for a candidate that is still "
+                        "being chosen, e.g. on calibration episodes")
+    p.add_argument("--fit", default=None, metavar="FIT_PT",
+                   help="train nothing: take the weights of a python -m tower_training.fit result, measure the "
+                        "test sets once and export them to --out")
     return p
 
 
@@ -177,17 +207,31 @@ def main(argv: list[str] | None = None) -> int:
     captions = np.asarray(text.encode_text(list(bank.texts)), np.float32)
     weights = np.array([CAPTION_WEIGHTS[k] for k in bank.kinds], np.float32)
     val_seeds = data_cfg.seeds("val", split)
-    select = val_selection_fn(text, data, split, val_seeds, half_res_too=True)
+    if args.bundle is not None:
+        return _write_bundle(args.bundle, train, captions, bank, weights, text, data, split, val_seeds,
+                             {"data_config": asdict(data_cfg), "room_data_config": asdict(room_cfg),
+                              "splits": split_summary(split), "command": "python -m tower_training.train " + " ".join(argv)})
+    fit_record = None
     t1 = time.perf_counter()
-    model, history = train_tower_multicaption(train, captions, bank.positives, train_cfg, caption_weights_t=weights,
-                                              select_fn=select, select_every=args.select_every, log_every=50,
-                                              init_onnx=None if args.init is None else str(Path(args.init) / "tower.onnx"))
-    t_train = time.perf_counter() - t1
+    if args.fit is not None:
+        from tower_training.fit import load_fit
+
+        model, fit_record = load_fit(args.fit, tower_cfg)
+        history = fit_record["history"]
+        train_cfg = replace(train_cfg, **{k: v for k, v in fit_record["fit_config"]["train"].items() if k != "tower"})
+        train_cfg = replace(train_cfg, low_res_scale=tuple(train_cfg.low_res_scale))
+    else:
+        select = val_selection_fn(text, data, split, val_seeds, half_res_too=True)
+        model, history = train_tower_multicaption(train, captions, bank.positives, train_cfg, caption_weights_t=weights,
+                                                  select_fn=select, select_every=args.select_every, log_every=50,
+                                                  init_onnx=None if args.init is None else str(Path(args.init) / "tower.onnx"))
+    t_train = time.perf_counter() - t1 if fit_record is None else 60 * history["minutes"]
     print(f"trained {train_cfg.steps} steps in {t_train / 60:.1f} min; best validation name top-1 "
           f"{history['best_val']:.3f} at step {history['best_step']}", flush=True)
 
-    # the test sets are measured once, after model selection
-    metrics = tower_metrics(embed_fn(model, tower_cfg.input_size), text, data, room_test, split, data_cfg)
+    # the test sets are measured once, after model selection (--validation-only: not at all)
+    metrics = tower_metrics(embed_fn(model, tower_cfg.input_size), text, data, room_test, split, data_cfg,
+                            include_test=not args.validation_only)
     for k, v in metrics.items():
         extra = f" top-5 {v['top5']:.3f}" if "top5" in v else ""
         print(f"{k:<48} top-1 {v['top1']:.3f}{extra}  (n={v['n']})")
@@ -217,4 +261,13 @@ def main(argv: list[str] | None = None) -> int:
         "init": None if args.init is None else init_record(Path(args.init)),
         "command": "python -m tower_training.train " + " ".join(argv),
     }
+    if fit_record is not None:  # trained elsewhere by tower_training.fit: what ran, where, on which bundle
+        fit_init = fit_record["fit_config"].get("init")
+        meta.update({
+            "fit": {k: fit_record[k] for k in ("command", "fit_config", "torch", "device_name") if k in fit_record}
+                   | {"bundle_sha256": fit_record.get("bundle", {}).get("sha256"),
+                      "bundle_command": fit_record.get("bundle", {}).get("meta", {}).get("command")},
+            "torch_threads": None,
+            "init": None if fit_init is None else init_record(Path(fit_init)),
+        })
     return export_checked(model, tower_cfg, args.out, meta, text, data.images[: min(32, len(data))])

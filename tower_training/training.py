@@ -24,7 +24,7 @@ from conceptfusion.perception.image_tower import TowerConfig, build_tower, prepr
 
 __all__ = [
     "CropSet", "TrainConfig", "class_targets", "train_tower", "retrieval_accuracy", "augment", "shrink", "multicaption_loss",
-    "train_tower_multicaption", "torch_embed_fn",
+    "train_tower_multicaption", "name_top1", "torch_embed_fn",
     "load_tower_weights_from_onnx", "export_checked",
 ]
 
@@ -141,13 +141,13 @@ def augment(image: np.ndarray, rng: np.random.Generator, *, low_res_p: float = 0
 
 
 
-def _optimiser(model, config):
-    """The learnable logit scale (log 10 at start), AdamW over the tower and the scale, and the
-    learning rate per step: linear warm-up over the first 5% of steps, then cosine decay to 0.
-    The temperature is not decayed: decay would pull the logit scale towards 1."""
+def _optimiser(model, config, device=None):
+    """The learnable logit scale (log 10 at start, on ``device``), AdamW over the tower and the
+    scale, and the learning rate per step: linear warm-up over the first 5% of steps, then cosine
+    decay to 0. The temperature is not decayed: decay would pull the logit scale towards 1."""
     import torch
 
-    logit_scale = torch.nn.Parameter(torch.tensor(math.log(10.0)))
+    logit_scale = torch.nn.Parameter(torch.tensor(math.log(10.0), device=device))
     opt = torch.optim.AdamW([{"params": list(model.parameters())}, {"params": [logit_scale], "weight_decay": 0.0}],
                             lr=config.lr, weight_decay=config.weight_decay)
     warm = max(1, config.steps // 20)
@@ -349,6 +349,19 @@ def train_tower_multicaption(
     history["best_val"] = None if best_state is None else best_val
     history["logit_scale"] = float(logit_scale.exp().item())
     return model.eval(), history
+
+
+def name_top1(embed_fn, image_sets: Sequence[Sequence[np.ndarray]], truth_n: np.ndarray, names_td: np.ndarray) -> float:
+    """The model-selection score: top-1 of each crop's true name among ``names_td``, the mean
+    over ``image_sets`` (the same crops at several resolutions); NaN for no crops.
+
+    Shape:
+        each set n crops (h_i, w_i, 3) uint8, ``truth_n`` (n,) row indices of ``names_td`` (T, d).
+    """
+    if not len(truth_n):
+        return float("nan")
+    hits = [np.mean(np.argmax(np.asarray(embed_fn(ims), np.float32) @ names_td.T, axis=1) == truth_n) for ims in image_sets]
+    return float(np.mean(hits))
 
 
 def torch_embed_fn(model, input_size: int):

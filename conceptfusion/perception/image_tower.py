@@ -26,7 +26,8 @@ import numpy as np
 from conceptfusion.perception.encoders import check_images, check_texts, embed_in_batches, onnx_session_options
 from conceptfusion.errors import MissingDependencyError
 
-__all__ = ["TowerConfig", "SHIPPED_TOWER_DIR", "SHIPPED_TOWER_V2_DIR", "preprocess", "build_tower", "export_tower_onnx", "EmbeddedEncoder"]
+__all__ = ["TowerConfig", "SHIPPED_TOWER_DIR", "SHIPPED_TOWER_V2_DIR", "NORMALISED_LEVELS", "square_crops", "preprocess",
+           "build_tower", "export_tower_onnx", "EmbeddedEncoder"]
 
 SHIPPED_TOWER_DIR = Path(__file__).resolve().parents[1] / "data" / "embedded_tower"
 """The shipped v1 tower (``embedded``): trained on the 7 kinds x 10 colours of the v1 world."""
@@ -37,7 +38,7 @@ SHIPPED_TOWER_V2_DIR = Path(__file__).resolve().parents[1] / "data" / "embedded_
 
 _MEAN = np.array([0.485, 0.456, 0.406], np.float32)
 _STD = np.array([0.229, 0.224, 0.225], np.float32)
-_NORMALISED = (np.arange(256, dtype=np.uint8)[:, None].astype(np.float32) / 255.0 - _MEAN) / _STD
+NORMALISED_LEVELS = (np.arange(256, dtype=np.uint8)[:, None].astype(np.float32) / 255.0 - _MEAN) / _STD
 """Normalised value of every uint8 level per channel, (256, 3) float32."""
 
 
@@ -59,10 +60,25 @@ class TowerConfig:
 
 
 def preprocess(images: Sequence[np.ndarray], input_size: int) -> np.ndarray:
-    """Crops to the tower's input tensor (see the module docstring).
+    """Crops to the tower's input tensor (see the module docstring): :func:`square_crops`, then
+    each level replaced by its normalised value (:data:`NORMALISED_LEVELS`).
 
     Shape:
         n images (h_i, w_i, 3) uint8 -> (n, 3, S, S) float32.
+    """
+    small = square_crops(images, input_size)
+    out = np.empty((len(small), 3, input_size, input_size), np.float32)
+    for c in range(3):  # a table lookup per channel: the same float32 values as computing them per pixel
+        out[:, c] = NORMALISED_LEVELS[:, c][small[..., c]]
+    return out
+
+
+def square_crops(images: Sequence[np.ndarray], input_size: int) -> np.ndarray:
+    """The first half of :func:`preprocess`: each crop padded to a square with its mean colour
+    and resized to ``input_size`` (area interpolation when shrinking), still uint8.
+
+    Shape:
+        n images (h_i, w_i, 3) uint8 -> (n, S, S, 3) uint8.
     """
     import cv2
 
@@ -82,10 +98,7 @@ def preprocess(images: Sequence[np.ndarray], input_size: int) -> np.ndarray:
             square[top : top + h, left : left + w] = img
         interp = cv2.INTER_AREA if side > input_size else cv2.INTER_LINEAR
         small[i] = cv2.resize(square, (input_size, input_size), interpolation=interp)
-    out = np.empty((len(imgs), 3, input_size, input_size), np.float32)
-    for c in range(3):  # a table lookup per channel: the same float32 values as computing them per pixel
-        out[:, c] = _NORMALISED[:, c][small[..., c]]
-    return out
+    return small
 
 
 def build_tower(config: TowerConfig = TowerConfig()):
