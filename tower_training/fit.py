@@ -39,7 +39,7 @@ from conceptfusion.io_utils import atomic_write_bytes
 from conceptfusion.perception.image_tower import NORMALISED_LEVELS, TowerConfig, build_tower, square_crops
 from tower_training.bundle import Bundle, file_sha256, load_bundle
 from tower_training.training import (
-    TrainConfig, _descend, _optimiser, augment, load_tower_weights_from_onnx, multicaption_loss, name_top1, shrink,
+    TrainConfig, descend, make_optimiser, augment, load_tower_weights_from_onnx, multicaption_loss, name_top1, shrink,
 )
 
 __all__ = ["FitConfig", "step_batch", "fit", "load_fit", "main"]
@@ -123,7 +123,7 @@ def fit(bundle: Bundle, config: FitConfig, out_dir: str | Path, *, resume: bool 
     if config.init is not None:
         load_tower_weights_from_onnx(model, str(Path(config.init) / "tower.onnx"))
     model.to(dev)
-    logit_scale, opt, lr_at = _optimiser(model, tc, device=dev)
+    logit_scale, opt, lr_at = make_optimiser(model, tc, device=dev)
     history: dict = {"evals": [], "best_step": None, "best_val": None}
     best_state, start = None, 0
     last_file, fit_file = out / "last.pt", out / "fit.pt"
@@ -180,7 +180,7 @@ def fit(bundle: Bundle, config: FitConfig, out_dir: str | Path, *, resume: bool 
         y = y.to(dev, non_blocking=True)
         logits = logit_scale.exp().clamp(max=100.0) * model(normalise(x_u8)) @ caps.T
         loss = multicaption_loss(logits, pos[y], wts)
-        _descend(opt, loss, lr_at(step))
+        descend(opt, loss, lr_at(step))
         if log_every and (step % log_every == 0 or step == tc.steps - 1):
             hit = float(pos[y, logits.argmax(1)].float().mean())
             rate = (step - step_log) / max(1e-9, time.perf_counter() - t_log)

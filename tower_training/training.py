@@ -24,7 +24,7 @@ from conceptfusion.perception.image_tower import TowerConfig, build_tower, prepr
 
 __all__ = [
     "CropSet", "TrainConfig", "class_targets", "train_tower", "retrieval_accuracy", "augment", "shrink", "multicaption_loss",
-    "train_tower_multicaption", "name_top1", "torch_embed_fn",
+    "train_tower_multicaption", "make_optimiser", "descend", "name_top1", "torch_embed_fn",
     "load_tower_weights_from_onnx", "export_checked",
 ]
 
@@ -141,7 +141,7 @@ def augment(image: np.ndarray, rng: np.random.Generator, *, low_res_p: float = 0
 
 
 
-def _optimiser(model, config, device=None):
+def make_optimiser(model, config, device=None):
     """The learnable logit scale (log 10 at start, on ``device``), AdamW over the tower and the
     scale, and the learning rate per step: linear warm-up over the first 5% of steps, then cosine
     decay to 0. The temperature is not decayed: decay would pull the logit scale towards 1."""
@@ -172,7 +172,7 @@ def _batch(train: CropSet, labels: np.ndarray, rng: np.random.Generator, config)
     return x, torch.from_numpy(labels[idx])
 
 
-def _descend(opt, loss, lr: float) -> None:
+def descend(opt, loss, lr: float) -> None:
     """One optimiser step on ``loss`` at learning rate ``lr``."""
     for g in opt.param_groups:
         g["lr"] = lr
@@ -197,7 +197,7 @@ def train_tower(train: CropSet, targets_cd: np.ndarray, config: TrainConfig = Tr
     torch.manual_seed(config.seed)
     rng = np.random.default_rng(config.seed)
     model = build_tower(config.tower)
-    logit_scale, opt, lr_at = _optimiser(model, config)
+    logit_scale, opt, lr_at = make_optimiser(model, config)
 
     targets = torch.from_numpy(np.ascontiguousarray(targets_cd, np.float32))
     labels = np.asarray(train.labels, np.int64)
@@ -207,7 +207,7 @@ def train_tower(train: CropSet, targets_cd: np.ndarray, config: TrainConfig = Tr
         emb = model(x)
         logits = logit_scale.exp().clamp(max=100.0) * emb @ targets.T
         loss = torch.nn.functional.cross_entropy(logits, y)
-        _descend(opt, loss, lr_at(step))
+        descend(opt, loss, lr_at(step))
         if log_every and (step % log_every == 0 or step == config.steps - 1):
             acc = float((logits.argmax(1) == y).float().mean())
             logger.info("step %d/%d loss %.3f batch acc %.2f scale %.1f", step, config.steps, loss.item(), acc, logit_scale.exp().item())
@@ -300,7 +300,7 @@ def train_tower_multicaption(
     model = build_tower(config.tower)
     if init_onnx is not None:
         load_tower_weights_from_onnx(model, init_onnx)
-    logit_scale, opt, lr_at = _optimiser(model, config)
+    logit_scale, opt, lr_at = make_optimiser(model, config)
 
     def set_train() -> None:
         model.train()
@@ -331,7 +331,7 @@ def train_tower_multicaption(
         emb = model(x)
         logits = logit_scale.exp().clamp(max=100.0) * emb @ caps.T
         loss = multicaption_loss(logits, pos[y], wts)
-        _descend(opt, loss, lr_at(step))
+        descend(opt, loss, lr_at(step))
         if log_every and (step % log_every == 0 or step == config.steps - 1):
             hit = pos[y, logits.argmax(1)].float().mean()
             logger.info("step %d/%d loss %.3f batch top-1 caption is a positive %.2f scale %.1f",
