@@ -260,6 +260,9 @@ def main(argv: list[str] | None = None) -> int:
         raise SystemExit(f"--low-res-p: expected a probability in [0, 1], got {args.low_res_p}")
     if args.steps < 1 or args.batch_size < 1 or args.select_every < 1 or args.workers < 0:
         raise SystemExit("--steps, --batch-size and --select-every: expected at least 1; --workers at least 0")
+    if args.device.startswith("cuda") and not torch.cuda.is_available():
+        raise SystemExit(f"--device {args.device}: this torch ({torch.__version__}) sees no CUDA device; "
+                         "use --device cpu, or run where torch has a GPU")
     tc = TrainConfig(steps=args.steps, batch_size=args.batch_size, lr=args.lr, weight_decay=args.weight_decay,
                      seed=args.seed, tower=TowerConfig(widths=widths, stem_stride=2), low_res_p=args.low_res_p)
     config = FitConfig(train=tc, select_every=args.select_every, workers=args.workers, device=args.device, init=args.init)

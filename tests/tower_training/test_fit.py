@@ -160,3 +160,16 @@ def test_fit_rejects_a_bundle_of_another_dimension(tmp_path):
         fit(b, cfg, tmp_path, log_every=0)
     with pytest.raises(FileNotFoundError, match=r"expected a fit\.pt file"):
         load_fit(tmp_path / "missing.pt")
+
+
+def test_the_command_says_what_is_wrong_with_its_arguments(tmp_path):
+    path = save_bundle(tmp_path / "b.npz", _bundle())
+    with pytest.raises(SystemExit, match=r"--widths: expected comma-separated channel counts, got 'a,b'"):
+        fit_mod.main([str(path), "--out", str(tmp_path / "o"), "--widths", "a,b"])
+    with pytest.raises(SystemExit, match=r"--low-res-p: expected a probability in \[0, 1\], got 2.0"):
+        fit_mod.main([str(path), "--out", str(tmp_path / "o"), "--low-res-p", "2"])
+    if not torch.cuda.is_available():
+        with pytest.raises(SystemExit, match=r"--device cuda: this torch .* sees no CUDA device"):
+            fit_mod.main([str(path), "--out", str(tmp_path / "o"), "--device", "cuda"])
+    with pytest.raises(FileNotFoundError, match=r"training bundle: expected a \.npz file"):
+        fit_mod.main([str(tmp_path / "missing.npz"), "--out", str(tmp_path / "o")])
