@@ -21,6 +21,7 @@
 from __future__ import annotations
 
 import argparse
+import json
 import logging
 import sys
 import time
@@ -67,7 +68,6 @@ def init_record(tower_dir: Path) -> dict:
     from its ``tower.json`` the world it was trained on, its command and its own start, so a
     chain of runs (v1 -> v2 -> ...) stays traceable after the folder's weights are replaced."""
     import hashlib
-    import json
 
     onnx = tower_dir / "tower.onnx"
     if not onnx.is_file():
@@ -87,8 +87,6 @@ def init_record(tower_dir: Path) -> dict:
 
 def _evaluate_only(tower_dir: Path, data: CropData, room_test: CropData, split, data_cfg: DataConfigV2) -> int:
     """``--evaluate``: every figure of an exported tower, printed as JSON (nothing written)."""
-    import json
-
     from conceptfusion.perception.image_tower import EmbeddedEncoder
     from conceptfusion.perception.text_tower import MiniLMTextEncoder
     text = MiniLMTextEncoder()
@@ -101,12 +99,11 @@ def _evaluate_only(tower_dir: Path, data: CropData, room_test: CropData, split, 
 
 def _write_bundle(path, train, captions, bank, weights, text, data, split, val_seeds, meta: dict) -> int:
     """``--bundle``: the training bundle (:mod:`tower_training.bundle`) of these crops and captions."""
+    from sim_envs.assets.library import catalogue
     from tower_training.bundle import Bundle, save_bundle
     from tower_training.evaluate_v2 import val_selection_inputs
 
     val_images, val_truth, names = val_selection_inputs(text, data, split, val_seeds)
-    from sim_envs.assets.library import catalogue
-
     meta = {**meta, "class_names": list(bank.class_names), "captions": list(bank.texts), "caption_kinds": list(bank.kinds),
             "caption_weights": CAPTION_WEIGHTS, "category_names": sorted(catalogue().categories)}
     out = save_bundle(path, Bundle(train, captions, bank.positives, weights, val_images, val_truth, names, meta))
@@ -217,6 +214,11 @@ def main(argv: list[str] | None = None) -> int:
         from tower_training.fit import load_fit
 
         model, fit_record = load_fit(args.fit, tower_cfg)
+        bundle_meta = fit_record.get("bundle", {}).get("meta", {})
+        for key, ours in (("data_config", asdict(data_cfg)), ("room_data_config", asdict(room_cfg))):
+            if key in bundle_meta and json.loads(json.dumps(ours)) != bundle_meta[key]:
+                raise SystemExit(f"--fit {args.fit}: its bundle was written with {key} {bundle_meta[key]}, "
+                                 f"this command's is {ours}: pass the same data options as the --bundle command")
         history = fit_record["history"]
         train_cfg = replace(train_cfg, **{k: v for k, v in fit_record["fit_config"]["train"].items() if k != "tower"})
         train_cfg = replace(train_cfg, low_res_scale=tuple(train_cfg.low_res_scale))
