@@ -34,8 +34,9 @@ from sim_envs.assets.library import catalogue
 from sim_envs.scenes.splits import Splits
 from tower_training.captions import article
 from tower_training.data import BACKGROUND_CLASS, SOURCES, CropData
+from tower_training.training import half_res, name_top1
 
-__all__ = ["crop_sets", "topk", "half_res", "evaluate_crops_v2", "val_selection_inputs", "val_selection_fn"]
+__all__ = ["crop_sets", "topk", "evaluate_crops_v2", "val_selection_inputs", "val_selection_fn"]
 
 
 def topk(emb_nd: np.ndarray, texts_td: np.ndarray, correct_nt: np.ndarray, k: int = 1) -> float:
@@ -80,14 +81,6 @@ def _embed(embed_fn, data: CropData, mask: np.ndarray) -> np.ndarray:
     return np.asarray(embed_fn([data.images[i] for i in idx]), np.float32) if len(idx) else np.zeros((0, 1), np.float32)
 
 
-def half_res(images) -> list[np.ndarray]:
-    """Each crop shrunk by 2 on both sides (area interpolation): how it looks when the frame is
-    rendered at half the size (160x120 instead of 320x240), as the agents' and map suites' are."""
-    from tower_training.training import shrink
-
-    return [shrink(im, 2.0) for im in images]
-
-
 def val_selection_inputs(text_encoder, data: CropData, split: Splits, val_seeds: list[int]):
     """What the model-selection score needs: every validation crop (VAL instances of train
     categories and VAL categories, VAL views only), its category's row among all library
@@ -110,9 +103,7 @@ def val_selection_fn(text_encoder, data: CropData, split: Splits, val_seeds: lis
     """``select(embed_fn) -> float``: name top-1 among all library category names over every
     validation crop (:func:`val_selection_inputs`, :func:`tower_training.training.name_top1`);
     with ``half_res_too``, the mean of that and the same figure on the crops at half resolution
-    (:func:`half_res`)."""
-    from tower_training.training import name_top1
-
+    (:func:`tower_training.training.half_res`)."""
     images, truth, t_names = val_selection_inputs(text_encoder, data, split, val_seeds)
     image_sets = [images] + ([half_res(images)] if half_res_too else [])
     return lambda embed_fn: name_top1(embed_fn, image_sets, truth, t_names)

@@ -25,7 +25,6 @@ On a GPU the result is not bit-reproducible (cuDNN's convolutions); on a CPU wit
 from __future__ import annotations
 
 import argparse
-import copy
 import io
 import logging
 import sys
@@ -39,7 +38,7 @@ from conceptfusion.io_utils import atomic_write_bytes
 from conceptfusion.perception.image_tower import NORMALISED_LEVELS, TowerConfig, build_tower, square_crops
 from tower_training.bundle import Bundle, file_sha256, load_bundle
 from tower_training.training import (
-    TrainConfig, descend, make_optimiser, augment, load_tower_weights_from_onnx, multicaption_loss, name_top1, shrink,
+    TrainConfig, augment, descend, half_res, load_tower_weights_from_onnx, make_optimiser, multicaption_loss, name_top1,
 )
 
 __all__ = ["FitConfig", "step_batch", "fit", "load_fit", "main"]
@@ -153,11 +152,12 @@ def fit(bundle: Bundle, config: FitConfig, out_dir: str | Path, *, resume: bool 
         x = x_u8.to(dev, non_blocking=True).long()
         return torch.stack([table[:, c][x[..., c]] for c in range(3)], dim=1)  # (B, 3, S, S)
 
-    val_sets = [bundle.val_images, [shrink(im, 2.0) for im in bundle.val_images]]
-    val_u8 = {id(s): torch.from_numpy(square_crops(s, tc.tower.input_size)) if len(s) else None for s in val_sets}
+    # the validation crops at full and half resolution, squared once: name_top1 hands each set to embed
+    val_sets = [torch.from_numpy(square_crops(ims, tc.tower.input_size)) if len(ims) else None
+                for ims in (bundle.val_images, half_res(bundle.val_images))]
 
-    def embed(images) -> np.ndarray:
-        x_all, outs = val_u8[id(images)], []
+    def embed(x_all) -> np.ndarray:
+        outs = []
         model.eval()
         with torch.no_grad():
             for s in range(0, len(x_all), 1024):
@@ -195,7 +195,7 @@ def fit(bundle: Bundle, config: FitConfig, out_dir: str | Path, *, resume: bool 
                 history["best_val"], history["best_step"] = v, step + 1
                 best_state = {n: t.detach().cpu().clone() for n, t in model.state_dict().items()}
                 _save(fit_file, payload(best_state))
-            _save(last_file, {"fit_config": asdict(config), "state_dict": copy.deepcopy(model.state_dict()),
+            _save(last_file, {"fit_config": asdict(config), "state_dict": model.state_dict(),
                               "optimiser": opt.state_dict(), "log_logit_scale": logit_scale.detach().cpu(),
                               "step": step + 1, "history": history})
     history["minutes"] = round((time.perf_counter() - t0) / 60, 2)

@@ -67,7 +67,7 @@ def init_record(tower_dir: Path) -> dict:
     """What a run started from (``--init``): the folder, the SHA-256 of its ``tower.onnx``, and
     from its ``tower.json`` the world it was trained on, its command and its own start, so a
     chain of runs (v1 -> v2 -> ...) stays traceable after the folder's weights are replaced."""
-    import hashlib
+    from tower_training.bundle import file_sha256
 
     onnx = tower_dir / "tower.onnx"
     if not onnx.is_file():
@@ -77,7 +77,7 @@ def init_record(tower_dir: Path) -> dict:
     world = meta.get("world", "v1")
     return {
         "tower_dir": str(tower_dir),
-        "onnx_sha256": hashlib.sha256(onnx.read_bytes()).hexdigest(),
+        "onnx_sha256": file_sha256(onnx),
         "world": ("v1 (7 kinds x 10 colours; no library instance, category or split seed)" if world == "v1"
                   else f"{world} (the object library's train split)"),
         "command": meta.get("command"),

@@ -23,7 +23,8 @@ import numpy as np
 from conceptfusion.perception.image_tower import TowerConfig, build_tower, preprocess
 
 __all__ = [
-    "CropSet", "TrainConfig", "class_targets", "train_tower", "retrieval_accuracy", "augment", "shrink", "multicaption_loss",
+    "CropSet", "TrainConfig", "class_targets", "train_tower", "retrieval_accuracy", "augment", "shrink", "half_res",
+    "multicaption_loss",
     "train_tower_multicaption", "make_optimiser", "descend", "name_top1", "torch_embed_fn",
     "load_tower_weights_from_onnx", "export_checked",
 ]
@@ -105,6 +106,12 @@ def shrink(image: np.ndarray, factor: float) -> np.ndarray:
     h, w = image.shape[:2]
     size = (max(2, int(round(w / factor))), max(2, int(round(h / factor))))
     return image if size == (w, h) else cv2.resize(np.ascontiguousarray(image), size, interpolation=cv2.INTER_AREA)
+
+
+def half_res(images) -> list[np.ndarray]:
+    """Each crop shrunk by 2 on both sides (area interpolation): how it looks when the frame is
+    rendered at half the size (160x120 instead of 320x240), as the agents' and map suites' are."""
+    return [shrink(im, 2.0) for im in images]
 
 
 def augment(image: np.ndarray, rng: np.random.Generator, *, low_res_p: float = 0.0,

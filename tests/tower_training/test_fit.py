@@ -9,7 +9,7 @@ from conceptfusion.perception.image_tower import NORMALISED_LEVELS, TowerConfig,
 from tower_training import fit as fit_mod
 from tower_training.bundle import Bundle, decode_crops, encode_crops, load_bundle, save_bundle
 from tower_training.fit import FitConfig, fit, load_fit, step_batch
-from tower_training.training import CropSet, TrainConfig, name_top1
+from tower_training.training import CropSet, TrainConfig, half_res, name_top1
 
 TINY = TowerConfig(embed_dim=8, input_size=16, widths=(4, 8, 8, 8), stem_stride=2)
 
@@ -120,8 +120,7 @@ def test_fit_is_the_same_with_loader_workers_and_keeps_the_best_validation(tmp_p
     model, record = load_fit(tmp_path / "serial" / "fit.pt", TINY)
     # the file holds the best weights: recompute the validation score from them
     embed = lambda ims: model(torch.from_numpy(preprocess(ims, 16))).detach().numpy()  # noqa: E731
-    from tower_training.training import shrink
-    score = name_top1(embed, [b.val_images, [shrink(im, 2.0) for im in b.val_images]], b.val_truth, b.names_td)
+    score = name_top1(embed, [b.val_images, half_res(b.val_images)], b.val_truth, b.names_td)
     assert score == pytest.approx(h["best_val"], abs=1e-9)
     assert record["fit_config"]["train"]["steps"] == 4 and "state_dict" not in record
     with pytest.raises(ValueError, match=r"the fit's tower is .* expected"):

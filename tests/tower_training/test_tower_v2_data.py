@@ -200,7 +200,7 @@ def test_low_res_augmentation_shrinks_and_is_off_by_default():
 
 
 def test_half_res_halves_every_crop():
-    from tower_training.evaluate_v2 import half_res
+    from tower_training.training import half_res
 
     crops = [np.zeros((40, 30, 3), np.uint8), np.zeros((3, 5, 3), np.uint8)]
     assert [c.shape for c in half_res(crops)] == [(20, 15, 3), (2, 2, 3)]
