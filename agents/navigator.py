@@ -72,13 +72,14 @@ class NavigatorConfig:
     integrate_every: int = 1
     """Fuse every k-th frame while driving (every frame while looking around); > 1 trades map
     density for speed with slow encoders."""
-    keyframe_move: float = 0.0
+    keyframe_move: float = 0.3
     """Fuse a frame only when the base has moved at least this far (m) or turned at least
     ``keyframe_turn_deg`` since the last fused frame (the first frame always); 0 and 0: every
     frame (as ``integrate_every`` says). Frames from nearly the same viewpoint add little to the
-    map but cost a full perception pass; skipping them changes what the agent sees, so it is off
-    by default."""
-    keyframe_turn_deg: float = 0.0
+    map but cost a full perception pass. The defaults (0.3 m, 20 degrees) were chosen on the v2
+    calibration search episodes (25 against 22 successes with every-frame fusion, about a third
+    less agent time per step)."""
+    keyframe_turn_deg: float = 20.0
     """The turn (degrees) that makes a frame a keyframe (see ``keyframe_move``)."""
     stuck_steps: int = 0
     """Bump rule (0: off): when the base has been commanded forward for this many consecutive

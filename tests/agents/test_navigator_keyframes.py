@@ -1,5 +1,5 @@
-"""The navigator's keyframe option: off by default (every frame fused), else only frames from a
-new enough viewpoint."""
+"""The navigator's keyframe rule: only frames from a new enough viewpoint are fused (0.3 m or 20
+degrees by default); 0 and 0 fuse every frame."""
 
 from __future__ import annotations
 
@@ -36,19 +36,36 @@ def _look_around(config: NavigatorConfig, steps: int = 20, turn_deg: float = 10.
     return mapper.fused
 
 
-def test_every_frame_is_fused_by_default():
-    assert len(_look_around(NavigatorConfig())) == 20
+def test_every_frame_is_fused_with_the_rule_off():
+    assert len(_look_around(NavigatorConfig(keyframe_move=0.0, keyframe_turn_deg=0.0))) == 20
+
+
+def test_default_rule_fuses_a_frame_every_twenty_degrees_or_thirty_centimetres():
+    assert (NavigatorConfig().keyframe_move, NavigatorConfig().keyframe_turn_deg) == (0.3, 20.0)
+    fused = _look_around(NavigatorConfig(), turn_deg=11.0)
+    assert len(fused) == 10  # steps 0, 2, 4, ..., 18 at 11 degrees a step
+    assert np.allclose(np.degrees(np.diff(np.unwrap(fused))), 22.0)
+    assert len(_look_around(NavigatorConfig(), turn_deg=1.0, move=0.1)) == 7  # every 3rd step: 0.3 m
+
+
+def test_the_builtin_agents_defaults_are_the_configs():
+    from agents.registry import AGENTS
+
+    options = AGENTS["map-navigator"].kwargs
+    assert options["keyframe_move"].default == NavigatorConfig().keyframe_move
+    assert options["keyframe_turn_deg"].default == NavigatorConfig().keyframe_turn_deg
 
 
 def test_turn_keyframes_fuse_every_third_frame_at_ten_degrees_a_step():
-    fused = _look_around(NavigatorConfig(keyframe_turn_deg=25.0))
+    fused = _look_around(NavigatorConfig(keyframe_move=0.0, keyframe_turn_deg=25.0))
     assert len(fused) == 7  # steps 0, 3, 6, ..., 18
     assert np.allclose(np.degrees(np.diff(fused)), 30.0)
 
 
 def test_move_keyframes_fuse_when_the_base_has_moved_far_enough():
-    assert len(_look_around(NavigatorConfig(keyframe_move=0.3), turn_deg=1.0, move=0.1)) == 7
-    assert len(_look_around(NavigatorConfig(keyframe_move=0.3), turn_deg=1.0, move=0.0)) == 1
+    move_only = NavigatorConfig(keyframe_move=0.3, keyframe_turn_deg=0.0)
+    assert len(_look_around(move_only, turn_deg=1.0, move=0.1)) == 7
+    assert len(_look_around(move_only, turn_deg=1.0, move=0.0)) == 1
 
 
 @pytest.mark.parametrize("kwargs", [{"keyframe_move": -0.1}, {"keyframe_turn_deg": float("nan")}, {"keyframe_move": "far"}])
