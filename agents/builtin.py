@@ -77,7 +77,7 @@ def _frame_pusher(encoder: str = "embedded", proposer: str = "rgbd", assume_pres
 
 
 def _map_navigator(encoder: str = "embedded", proposer: str = "rgbd", seed: int = 0, integrate_every: int = 1,
-                   keyframe_move: float = 0.3, keyframe_turn_deg: float = 20.0, goal_tolerance: float = 0.05,
+                   keyframe_move: float = 0.3, keyframe_turn_deg: float = 40.0, goal_tolerance: float = 0.05,
                    stuck_steps: int = 0, explore_range: float = 0.0, recheck_faded: bool = False):
     from agents.navigator import MapNavigator, NavigatorConfig
 
@@ -137,7 +137,7 @@ register_agent(AgentSpec(
     "map-navigator", _map_navigator, "object_search",
     "ConceptFusion map built online; goal query, OMPL path to the goal or a frontier, pure pursuit, stop",
     {**_PERCEPTION, "seed": _SEED, "integrate_every": Option.at_least(int, 1, 1),
-     "keyframe_move": Option.at_least(float, 0.3, 0.0), "keyframe_turn_deg": Option.at_least(float, 20.0, 0.0),
+     "keyframe_move": Option.at_least(float, 0.3, 0.0), "keyframe_turn_deg": Option.at_least(float, 40.0, 0.0),
      "goal_tolerance": Option.at_least(float, 0.05, 0.01), "stuck_steps": Option.at_least(int, 0, 0),
      "explore_range": Option.at_least(float, 0.0, 0.0), "recheck_faded": Option(bool, False)}, uses_map=True,
 ))

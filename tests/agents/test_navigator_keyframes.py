@@ -1,4 +1,4 @@
-"""The navigator's keyframe rule: only frames from a new enough viewpoint are fused (0.3 m or 20
+"""The navigator's keyframe rule: only frames from a new enough viewpoint are fused (0.3 m or 40
 degrees by default); 0 and 0 fuse every frame."""
 
 from __future__ import annotations
@@ -40,11 +40,11 @@ def test_every_frame_is_fused_with_the_rule_off():
     assert len(_look_around(NavigatorConfig(keyframe_move=0.0, keyframe_turn_deg=0.0))) == 20
 
 
-def test_default_rule_fuses_a_frame_every_twenty_degrees_or_thirty_centimetres():
-    assert (NavigatorConfig().keyframe_move, NavigatorConfig().keyframe_turn_deg) == (0.3, 20.0)
-    fused = _look_around(NavigatorConfig(), turn_deg=11.0)
-    assert len(fused) == 10  # steps 0, 2, 4, ..., 18 at 11 degrees a step
-    assert np.allclose(np.degrees(np.diff(np.unwrap(fused))), 22.0)
+def test_default_rule_fuses_a_frame_every_forty_degrees_or_thirty_centimetres():
+    assert (NavigatorConfig().keyframe_move, NavigatorConfig().keyframe_turn_deg) == (0.3, 40.0)
+    fused = _look_around(NavigatorConfig(), steps=16, turn_deg=21.0)
+    assert len(fused) == 8  # steps 0, 2, 4, ..., 14 at 21 degrees a step
+    assert np.allclose(np.degrees(np.diff(np.unwrap(fused))), 42.0)
     assert len(_look_around(NavigatorConfig(), turn_deg=1.0, move=0.1)) == 7  # every 3rd step: 0.3 m
 
 
