@@ -41,14 +41,14 @@ __all__ = ["FOLDER", "SEARCH_FILE", "REARRANGE_FILE", "NUM_APARTMENTS", "SEED_OF
 FOLDER = "calibration-v2"
 """Folder under ``scenes/`` of the v2 calibration data."""
 SEARCH_FILE = f"{FOLDER}/search-episodes-v2.jsonl"
-NUM_APARTMENTS = 10
+NUM_APARTMENTS = 30
 SEED_OFFSET = 200
 """Index of the first apartment seed among the ``calibration`` seeds."""
 GENERATOR_SEED = 7102
 REARRANGE_FILE = f"{FOLDER}/rearrange-episodes-v2.jsonl"
 NUM_TABLE_EPISODES = 80
 TABLE_SEED_OFFSET = 300
-"""Index of the first table seed among the ``calibration`` seeds (apartments above use 200-209)."""
+"""Index of the first table seed among the ``calibration`` seeds (apartments above use 200-229)."""
 TABLE_SEEDS = 1500
 """Calibration seeds the table episodes may draw from (a table with no reachable target is skipped)."""
 TABLE_GENERATOR_SEED = 7103

@@ -89,14 +89,15 @@ def test_the_default_comparison_is_the_v2_world():
 
 
 def test_v2_calibration_search_data_regenerates_and_stays_out_of_every_suite():
-    from scenes.make_calibration_v2 import FOLDER, SEARCH_FILE, search_files
+    from scenes.make_calibration_v2 import FOLDER, NUM_APARTMENTS, SEARCH_FILE, search_files
     from scenes.shipped import ROOT
+    from sim_envs.scenes.search_episodes_v2 import PER_SCENE
     from tower_training.room_floor import RoomFloorConfig, room_floor_seeds
 
     files = search_files()
-    assert len(files) == 1 + 10 and all((ROOT / rel).read_text() == text for rel, text in files.items())
+    assert len(files) == 1 + NUM_APARTMENTS == 31 and all((ROOT / rel).read_text() == text for rel, text in files.items())
     eps = load_episodes(ROOT / SEARCH_FILE).episodes
-    assert len(eps) == 60 and {splits().seed_role(e.scene_seed) for e in eps} == {"calibration"}
+    assert len(eps) == NUM_APARTMENTS * PER_SCENE == 180 and {splits().seed_role(e.scene_seed) for e in eps} == {"calibration"}
     cal_scenes = {Path(rel).stem for rel in files if rel.endswith(".json")}
     room_floor = {f"household-v2-{s}" for s in room_floor_seeds(RoomFloorConfig())}
     assert not cal_scenes & room_floor  # apart from the apartments that chose the score floor
