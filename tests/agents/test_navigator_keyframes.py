@@ -49,11 +49,15 @@ def test_default_rule_fuses_a_frame_every_forty_degrees_or_thirty_centimetres():
 
 
 def test_the_builtin_agents_defaults_are_the_configs():
+    import inspect
+
     from agents.registry import AGENTS
 
-    options = AGENTS["map-navigator"].kwargs
-    assert options["keyframe_move"].default == NavigatorConfig().keyframe_move
-    assert options["keyframe_turn_deg"].default == NavigatorConfig().keyframe_turn_deg
+    spec = AGENTS["map-navigator"]
+    factory_defaults = inspect.signature(spec.factory).parameters
+    for name in ("keyframe_move", "keyframe_turn_deg"):
+        # the registered option, the factory's keyword and the config dataclass: one value
+        assert spec.kwargs[name].default == factory_defaults[name].default == getattr(NavigatorConfig(), name)
 
 
 def test_turn_keyframes_fuse_every_third_frame_at_ten_degrees_a_step():
