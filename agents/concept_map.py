@@ -30,6 +30,7 @@ import numpy as np
 from conceptfusion.frames import RGBDFrame
 from conceptfusion.map.fusion import PointFusionMap
 from conceptfusion.map.query import NEGATIVE_PHRASES, QueryResult, locate
+from conceptfusion.map.regions import SupportTest
 from conceptfusion.perception.featurizer import FrameFeaturizer
 
 __all__ = ["ConceptMapper", "MapperConfig", "frame_from_observation", "privileged_labels"]
@@ -49,6 +50,9 @@ class MapperConfig:
     """Smallest region (points) that counts as a found object."""
     relevancy_threshold: float = 0.6
     """Calibrated decision against generic phrases (see :func:`conceptfusion.map.query.locate`)."""
+    drop_support: bool = True
+    """Regions lose the horizontal surface they stand on when they have bled into it (the table
+    rim around a mug's base; see :func:`conceptfusion.map.regions.drop_support`)."""
     min_score: float | None = None
     """Also require the best region's median cosine score to reach this (None: no such test).
     Generic negatives do not reject a near-miss ("brown bottle" for "the black bottle" scores
@@ -230,6 +234,7 @@ class ConceptMapper:
         res = locate(
             self.map, self.text_vector(text), negatives,
             relevancy_threshold=c.relevancy_threshold, voxel_size=c.voxel_size, min_points=c.min_points,
+            support=SupportTest() if c.drop_support else None,
         )
         if c.min_score is None or not floor or not res.found:
             return res

@@ -22,7 +22,7 @@ import numpy as np
 
 from conceptfusion._checks import as_float_array
 from conceptfusion.errors import ShapeError
-from conceptfusion.map.regions import Region
+from conceptfusion.map.regions import Region, SupportTest, drop_support
 
 __all__ = [
     "NEGATIVE_PHRASES",
@@ -170,13 +170,17 @@ def locate(
     temperature: float = 10.0,
     voxel_size: float = 0.03,
     min_points: int = 20,
+    support: SupportTest | None = SupportTest(),
 ) -> QueryResult:
     """Find where a query vector is in a map, or say it is not there.
 
     A point is selected when its relative score (paper) is at least ``relative_threshold``
     **and** its relevancy against the negative phrases is at least ``relevancy_threshold``.
-    Selected points are clustered into regions (:func:`connected_regions`); the query is
-    found when at least one region has ``min_points`` points.
+    Selected points are clustered into regions (:func:`connected_regions`). With ``support``
+    (and a map with normals), each region loses the horizontal surface it stands on when it
+    has bled into one (:func:`~conceptfusion.map.regions.drop_support`: the table rim around a
+    mug's base); regions left with fewer than ``min_points`` points are dropped and the rest
+    re-ranked. The query is found when at least one region has ``min_points`` points.
 
     Args:
         map_: a :class:`~conceptfusion.map.fusion.PointFusionMap`.
@@ -198,7 +202,12 @@ def locate(
     relev = relevancy(scores, neg_scores, temperature=temperature) if len(neg) else np.ones_like(scores)
     with np.errstate(invalid="ignore"):
         selected = (rel >= relative_threshold) & (relev >= relevancy_threshold)
-    regions = connected_regions(map_.points, selected, scores, voxel_size=voxel_size, min_points=min_points)
+    points = map_.points
+    regions = connected_regions(points, selected, scores, voxel_size=voxel_size, min_points=min_points)
+    normals = getattr(map_, "normals", None) if support is not None else None
+    dropped = 0
+    if regions and normals is not None:
+        regions, dropped = _without_support(points, np.asarray(normals), regions, support, min_points)
     reason = ""
     if len(map_) == 0 or not np.isfinite(scores).any():
         reason = "the map has no points with concept vectors"
@@ -209,8 +218,26 @@ def locate(
             f"(best relevancy {best:.2f} < {relevancy_threshold})"
             if best < relevancy_threshold
             else f"selected points form no region of at least {min_points} points"
+            + (f" ({dropped} lay on the surface under them)" if dropped else "")
         )
     return QueryResult(bool(regions), regions, scores, rel, relev, reason)
+
+
+def _without_support(points_n3, normals_n3, regions: list[Region], test: SupportTest, min_points: int) -> tuple[list[Region], int]:
+    """``regions`` each without the surface it stands on (:func:`drop_support`), those left
+    with at least ``min_points`` points, re-ranked as :func:`connected_regions` ranks; and how
+    many regions were dropped."""
+    up = normals_n3[:, 2] >= test.up_cos
+    out = []
+    for reg in regions:
+        kept, z0 = drop_support(points_n3, up, reg.indices_n, test)
+        if z0 is None:
+            out.append(reg)
+        elif len(kept) >= min_points:
+            keep = np.isin(reg.indices_n, kept, assume_unique=True)
+            out.append(Region(points_n3=reg.points_n3[keep], scores_n=reg.scores_n[keep], indices_n=reg.indices_n[keep]))
+    out.sort(key=lambda reg: (-reg.score, -reg.num_points))
+    return out, len(regions) - len(out)
 
 
 def click_query_vector(map_, point_world_3: Sequence[float], *, max_distance: float = 0.05) -> np.ndarray:

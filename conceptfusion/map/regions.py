@@ -14,7 +14,7 @@ import numpy as np
 from conceptfusion._checks import as_float_array
 from conceptfusion.errors import ShapeError
 
-__all__ = ["Region", "region_from_points"]
+__all__ = ["Region", "region_from_points", "SupportTest", "drop_support"]
 
 
 @dataclass(frozen=True)
@@ -84,3 +84,102 @@ def region_from_points(points_n3, scores_n=None, indices_n=None) -> Region:
     if idx.size and idx.shape != (len(pts),):
         raise ShapeError(f"indices_n: expected shape ({len(pts)},), got {idx.shape}")
     return Region(points_n3=pts, scores_n=scores, indices_n=idx)
+
+
+@dataclass(frozen=True)
+class SupportTest:
+    """How :func:`drop_support` recognises the surface a region stands on.
+
+    A level of the region's upward-facing points (normal within ``acos(up_cos)`` of +z) is a
+    *support* when it holds at least ``min_share`` of them and the map has upward-facing points
+    at the same height (within ``tol``) in at least ``ring_cover`` of the ``cell``-sized columns
+    that ring the region (up to ``ring`` cells outside it): the region has bled into a surface
+    that goes on beyond it, such as the table under a mug or the floor under a chair.
+    """
+
+    cell: float = 0.02
+    """Column size (m) of the ring test."""
+    ring: int = 3
+    """Ring width in cells around the region's columns."""
+    level_bin: float = 0.002
+    """Height bin (m) of the candidate levels."""
+    tol: float = 0.002
+    """Height tolerance (m) of a level: ring points within ``tol`` of it are on it."""
+    above: float = 0.003
+    """Region points less than this (m) above the support are dropped with it. Small, so that
+    a thin object (a knife, a sheet of paper) is kept; and ``tol`` tight, so that its top is not
+    taken for the surface it lies on."""
+    min_share: float = 0.05
+    """Smallest share of the region's upward-facing points that makes a candidate level."""
+    ring_cover: float = 0.5
+    """Share of the ring's columns that the surface must reach."""
+    up_cos: float = 0.9
+    """Cosine of the largest tilt of an upward-facing normal."""
+
+
+def drop_support(points_n3: np.ndarray, up_n: np.ndarray, region_idx: np.ndarray,
+                 test: SupportTest = SupportTest()) -> tuple[np.ndarray, float | None]:
+    """The region without the horizontal surface it stands on, when it has bled into one.
+
+    Thresholded scores pick out an object together with a rim of the table (or floor, or shelf)
+    around its base: features are fused per mask region, and a mask rarely stops at the exact
+    edge. The lowest level of the region's upward-facing points that passes the ring test of
+    ``test`` (see :class:`SupportTest`) is taken as the support; every region point less than
+    ``test.above`` above it (or below it) is dropped. A region with no such level is returned
+    whole (an object lying on nothing, or one whose base the map never saw).
+
+    Args:
+        points_n3: all map points.
+        up_n: which map points face upwards (``normals[:, 2] >= test.up_cos``).
+        region_idx: the region's map point indices.
+
+    Returns:
+        ``(kept_idx, support_z)``: the kept indices (a subset of ``region_idx``, same order) and
+        the support's height (None when none was found).
+
+    Shape:
+        ``points_n3`` (N, 3), ``up_n`` (N,) bool, ``region_idx`` (R,) int -> (R',) int, float.
+    """
+    from scipy import ndimage
+
+    idx = np.asarray(region_idx, np.int64)
+    if idx.size == 0:
+        return idx, None
+    z_up = points_n3[idx[up_n[idx]], 2]
+    if z_up.size < 10:
+        return idx, None
+    bins = np.floor(z_up / test.level_bin).astype(np.int64)
+    levels, counts = np.unique(bins, return_counts=True)
+    levels = levels[counts >= max(5, test.min_share * z_up.size)]
+    if levels.size == 0:
+        return idx, None
+    # The region's columns, and the ring of columns around them, on a local grid.
+    xy = points_n3[idx, :2]
+    origin = np.floor(xy.min(axis=0) / test.cell).astype(np.int64) - test.ring
+    cols = np.floor(xy / test.cell).astype(np.int64) - origin
+    shape = tuple(cols.max(axis=0) + test.ring + 1)
+    occupied = np.zeros(shape, bool)
+    occupied[cols[:, 0], cols[:, 1]] = True
+    size = 2 * test.ring + 1
+    ring = ndimage.binary_dilation(occupied, structure=np.ones((size, size), bool)) & ~occupied
+    n_ring = int(ring.sum())
+    if n_ring == 0:
+        return idx, None
+    # Upward-facing map points outside the region over the local grid.
+    lo = (origin * test.cell).astype(np.float64)
+    hi = lo + np.asarray(shape) * test.cell
+    near = up_n & np.all((points_n3[:, :2] >= lo) & (points_n3[:, :2] < hi), axis=1)
+    near[idx] = False
+    near_pts = points_n3[near]
+    near_cols = np.floor(near_pts[:, :2] / test.cell).astype(np.int64) - origin
+    inside = np.all((near_cols >= 0) & (near_cols < np.asarray(shape)), axis=1)
+    near_pts, near_cols = near_pts[inside], near_cols[inside]
+    for b in levels:  # lowest first
+        in_bin = bins == b
+        z0 = float(np.median(z_up[in_bin]))
+        at = np.abs(near_pts[:, 2] - z0) < test.tol
+        hit = np.zeros(shape, bool)
+        hit[near_cols[at, 0], near_cols[at, 1]] = True
+        if (hit & ring).sum() >= test.ring_cover * n_ring:
+            return idx[points_n3[idx, 2] > z0 + test.above], z0
+    return idx, None
