@@ -11,7 +11,7 @@ from dataclasses import dataclass, field
 
 import numpy as np
 
-from conceptfusion._checks import as_float_array
+from conceptfusion._checks import as_array, as_float_array
 from conceptfusion.errors import ShapeError
 
 __all__ = ["Region", "region_from_points", "SupportTest", "drop_support"]
@@ -116,6 +116,21 @@ class SupportTest:
     up_cos: float = 0.9
     """Cosine of the largest tilt of an upward-facing normal."""
 
+    def __post_init__(self) -> None:
+        for name in ("cell", "level_bin"):
+            if not getattr(self, name) > 0:
+                raise ValueError(f"SupportTest.{name}: expected a positive size in metres, got {getattr(self, name)!r}")
+        for name in ("tol", "above"):
+            if not getattr(self, name) >= 0:
+                raise ValueError(f"SupportTest.{name}: expected a height >= 0 in metres, got {getattr(self, name)!r}")
+        if isinstance(self.ring, bool) or not isinstance(self.ring, (int, np.integer)) or self.ring < 1:
+            raise ValueError(f"SupportTest.ring: expected a whole number of cells >= 1, got {self.ring!r}")
+        for name in ("min_share", "ring_cover"):
+            if not 0 < getattr(self, name) <= 1:
+                raise ValueError(f"SupportTest.{name}: expected a share in (0, 1], got {getattr(self, name)!r}")
+        if not -1 <= self.up_cos <= 1:
+            raise ValueError(f"SupportTest.up_cos: expected a cosine in [-1, 1], got {self.up_cos!r}")
+
 
 def drop_support(points_n3: np.ndarray, up_n: np.ndarray, region_idx: np.ndarray,
                  test: SupportTest = SupportTest()) -> tuple[np.ndarray, float | None]:
@@ -142,9 +157,15 @@ def drop_support(points_n3: np.ndarray, up_n: np.ndarray, region_idx: np.ndarray
     """
     from scipy import ndimage
 
-    idx = np.asarray(region_idx, np.int64)
+    points_n3 = as_float_array("points_n3", np.asarray(points_n3), shape=(None, 3))
+    up_n = as_array("up_n", np.asarray(up_n), shape=(len(points_n3),), kinds="b")
+    idx = np.asarray(region_idx)
     if idx.size == 0:
-        return idx, None
+        return np.zeros(0, np.int64), None
+    idx = as_array("region_idx", idx, shape=(None,), kinds="iu").astype(np.int64)
+    if idx.min() < 0 or idx.max() >= len(points_n3):
+        raise IndexError(f"region_idx: expected map point indices in [0, {len(points_n3)}), "
+                         f"got values from {idx.min()} to {idx.max()}")
     z_up = points_n3[idx[up_n[idx]], 2]
     if z_up.size < 10:
         return idx, None

@@ -3,6 +3,8 @@
 import numpy as np
 import pytest
 
+from conceptfusion.errors import DtypeError, ShapeError
+
 from conceptfusion.map.query import locate
 from conceptfusion.map.regions import SupportTest, drop_support
 
@@ -110,3 +112,31 @@ def test_locate_answers_without_the_table_and_says_so_when_only_table_was_select
     assert whole.best.num_points > res.best.num_points and np.any(kind[whole.best.indices_n] == 0)
     table = locate(Map(), np.array([-1.0, 0.0]), neg, relevancy_threshold=0.0)
     assert not table.found and "lay on the surface under them" in table.reason
+
+
+@pytest.mark.parametrize("field, value, match", [
+    ("cell", 0.0, "positive size"), ("level_bin", -0.002, "positive size"), ("tol", -1e-3, "height >= 0"),
+    ("above", float("nan"), "height >= 0"), ("ring", 0, "whole number"), ("ring", 2.5, "whole number"),
+    ("min_share", 0.0, r"share in \(0, 1\]"), ("ring_cover", 1.5, r"share in \(0, 1\]"), ("up_cos", 1.2, r"\[-1, 1\]"),
+])
+def test_bad_settings_are_refused_naming_the_field(field, value, match):
+    with pytest.raises(ValueError, match=rf"SupportTest\.{field}: expected .*{match}"):
+        SupportTest(**{field: value})
+
+
+def test_bad_inputs_say_what_was_expected(world):
+    pts, nrm, kind = world
+    up = nrm[:, 2] >= 0.9
+    region = np.flatnonzero(kind == 1)
+    with pytest.raises(ShapeError, match=r"points_n3: expected shape \(\*, 3\)"):
+        drop_support(pts[:, :2], up, region)
+    with pytest.raises(ShapeError, match=r"up_n: expected shape"):
+        drop_support(pts, up[:-1], region)
+    with pytest.raises(DtypeError, match="up_n"):
+        drop_support(pts, nrm[:, 2], region)
+    with pytest.raises(DtypeError, match="region_idx"):
+        drop_support(pts, up, region.astype(float))
+    with pytest.raises(IndexError, match=r"region_idx: expected map point indices in \[0, "):
+        drop_support(pts, up, np.array([0, len(pts)]))
+    kept, z0 = drop_support(pts, up, [])
+    assert kept.dtype == np.int64 and kept.size == 0 and z0 is None
