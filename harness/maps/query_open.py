@@ -40,6 +40,7 @@ means, with counts), which is what the report and the README quote.
 
 from __future__ import annotations
 
+import dataclasses
 import time
 import zlib
 from collections import defaultdict
@@ -165,7 +166,8 @@ def run_open_query_scene(scene_id: str, encoder: str, *, frames: int = 12, width
 
 
 def score_open_query_scene(scene: Scene, encoder: str, *, frames: int = 12, width: int = SCAN_SIZE[0], height: int = SCAN_SIZE[1],
-                           seed: int = 0, floor: bool = True, all_regions: bool = False) -> tuple[dict, dict, dict]:
+                           seed: int = 0, floor: bool = True, all_regions: bool = False,
+                           drop_support: bool = True) -> tuple[dict, dict, dict]:
     """Scan a loaded v2 tabletop, fuse a map with ``encoder`` and score its queries
     (:func:`open_queries`); returns ``(metrics, extras, timings)``.
 
@@ -174,12 +176,16 @@ def score_open_query_scene(scene: Scene, encoder: str, *, frames: int = 12, widt
     phrases); ``all_regions`` adds ``regions`` to each found entry: ``[median score, IoU]`` of every
     region in the answer's order (``[median score]`` for absent queries), from which the floored
     answer at any floor follows (the first region whose median reaches it), for choosing a floor
-    on calibration tables (:mod:`harness.maps.query_open_develop`).
+    on calibration tables (:mod:`harness.maps.query_open_develop`). ``drop_support=False`` answers
+    with whole regions (the mapper's ``MapperConfig.drop_support``), as before 4 December.
     """
     t0 = time.perf_counter()
     scan = scan_scene(scene, frames=frames, width=width, height=height)
     t_scan = time.perf_counter() - t0
-    mapper = fuse_frames(make_mapper(encoder, "rgbd"), scan)
+    mapper = make_mapper(encoder, "rgbd")
+    if not drop_support:
+        mapper.config = dataclasses.replace(mapper.config, drop_support=False)
+    mapper = fuse_frames(mapper, scan)
     t_fuse = time.perf_counter() - t0 - t_scan
     pts = mapper.map.points
     gt = point_labels(pts, scan.object_boxes)

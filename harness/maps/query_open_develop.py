@@ -1,7 +1,7 @@
 """``query-open`` on calibration tables: what the score floor costs, measured where settings are chosen.
 
 ``python -m harness.maps.query_open_develop [--tables N] [--encoder SPEC] [--frames N --width W
---height H]`` asks the
+--height H] [--whole-regions]`` asks the
 ``query-open`` queries (:func:`harness.maps.query_open.open_queries`: six kinds of phrase per
 object, three absent categories per table) over maps of the first N v2 calibration tables
 (``scenes/calibration-v2/``: calibration seeds, TRAIN instances only, no evaluation scene), with
@@ -37,15 +37,15 @@ __all__ = ["calibration_queries", "answer_at", "floor_table", "main"]
 _KINDS = QUERY_KINDS[:-1]  # every kind but "absent"
 
 
-def calibration_queries(args: tuple[str, str, int, int, int]) -> list[dict]:
-    """``(scene file, encoder, frames, width, height)`` -> the scene's query entries without the
-    floor, with ``regions``."""
+def calibration_queries(args: tuple[str, str, int, int, int, bool]) -> list[dict]:
+    """``(scene file, encoder, frames, width, height, drop_support)`` -> the scene's query entries
+    without the floor, with ``regions``."""
     from harness.maps.query_open import score_open_query_scene
     from sim_envs.scenes.format import load_scene
 
-    path, encoder, frames, width, height = args
+    path, encoder, frames, width, height, drop_support = args
     _, extras, _ = score_open_query_scene(load_scene(path), encoder, frames=frames, width=width, height=height,
-                                          floor=False, all_regions=True)
+                                          floor=False, all_regions=True, drop_support=drop_support)
     return extras["queries"]
 
 
@@ -95,6 +95,8 @@ def main(argv: list[str] | None = None) -> int:
     p.add_argument("--frames", type=int, default=12, help="scan frames (the suite's default: 12)")
     p.add_argument("--width", type=int, default=SCAN_SIZE[0], help=f"scan width (the suite's default: {SCAN_SIZE[0]})")
     p.add_argument("--height", type=int, default=SCAN_SIZE[1], help=f"scan height (the suite's default: {SCAN_SIZE[1]})")
+    p.add_argument("--whole-regions", action="store_true",
+                   help="answer with whole regions, the surface under an object included (MapperConfig.drop_support=False)")
     args = p.parse_args(argv)
     if min(args.tables, args.workers, args.frames) < 1 or min(args.width, args.height) < 8:
         p.error(f"expected --tables, --workers, --frames >= 1 and an image of at least 8x8, got {args.tables}, "
@@ -106,11 +108,13 @@ def main(argv: list[str] | None = None) -> int:
     if not scenes:
         p.error(f"no calibration tables in {CALIBRATION_DIR}")
     with ProcessPoolExecutor(args.workers) as pool:
-        entries = [e for qs in pool.map(calibration_queries, [(str(s), args.encoder, args.frames, args.width, args.height) for s in scenes]) for e in qs]
+        entries = [e for qs in pool.map(calibration_queries, [(str(s), args.encoder, args.frames, args.width, args.height, not args.whole_regions)
+                                                       for s in scenes]) for e in qs]
     floor = make_mapper(args.encoder, "rgbd").config.min_score
     present = [_best(e) for e in entries if e["kind"] != "absent"]
     absent = [_best(e) for e in entries if e["kind"] == "absent"]
-    print(f"{len(scenes)} calibration tables, {args.frames} frames at {args.width}x{args.height}, encoder {args.encoder}: "
+    print(f"{len(scenes)} calibration tables, {args.frames} frames at {args.width}x{args.height}, encoder {args.encoder}"
+          f"{', whole regions' if args.whole_regions else ''}: "
           f"{len(present)} present queries, {len(absent)} absent")
     print(f"ROC AUC of the best region's median score, present vs absent: {_auc(present, absent):.3f}")
     chosen = choose_floor(present, absent)

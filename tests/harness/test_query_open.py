@@ -189,3 +189,19 @@ def test_report_gives_success_by_description_kind_and_goal_split(tmp_path):
     assert "Success by how seen the goal object is" in md
     assert "| agent | encoder | seen | held_out_category | validation |" in md
     assert "| map-pusher | embedded-v2 | 0.67 (3) | 0.00 (1) | 0.00 (1) |" in md
+
+
+def test_answers_without_the_table_rim_overlap_their_objects_better():
+    """``drop_support`` (the default) against whole regions on the first calibration table, a
+    small scan: the present queries' answers overlap their objects better on average, and the
+    switch reaches the mapper (some answers differ)."""
+    scene = load_scene(sorted(CALIBRATION_DIR.glob("tabletop-v2-*.json"))[0])
+    kw = dict(frames=6, width=160, height=120)
+    _, trimmed, _ = score_open_query_scene(scene, "embedded-v2", **kw)
+    _, whole, _ = score_open_query_scene(scene, "embedded-v2", drop_support=False, **kw)
+    pairs = [(a, b) for a, b in zip(trimmed["queries"], whole["queries"]) if a["kind"] != "absent"]
+    assert pairs and all(a["text"] == b["text"] for a, b in pairs)
+    better = sum(a["iou"] > b["iou"] for a, b in pairs)
+    worse = sum(a["iou"] < b["iou"] for a, b in pairs)
+    assert better > worse
+    assert np.mean([a["iou"] for a, _ in pairs]) > np.mean([b["iou"] for _, b in pairs])
