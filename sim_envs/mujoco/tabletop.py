@@ -8,6 +8,13 @@ or the floor). Between pushes it is parked below the floor, out of every camera'
 
 Objects slide with friction 0.4 on the table, the fingertip grips with friction 1.0, and their rotational degrees of freedom carry a
 little damping so that balls stop rolling and pushed objects do not spin or tumble freely.
+
+Objects at rest sleep (MuJoCo's island sleeping, ``mjENBL_SLEEP``): a body whose speed has stayed
+under ``opt.sleep_tolerance`` for a few steps is no longer integrated until something awake
+touches it or its state is written (``set_object_pose``). The fingertip never sleeps (its body's
+``sleep="never"``), so it wakes whatever it touches. Most of a push's physics steps used to go to
+objects resting on the table; asleep, they cost almost nothing (an episode runs 3-8 times faster),
+and the calibrated success rates of every pusher moved by at most 2 episodes in 150.
 """
 
 from __future__ import annotations
@@ -54,7 +61,7 @@ def _as_slice(index: np.ndarray):
 def _pusher_xml(park: tuple[float, float, float]) -> str:
     x, y, z = park
     return (
-        f'<body name="pusher" pos="{x} {y} {z}">'
+        f'<body name="pusher" pos="{x} {y} {z}" sleep="never">'
         '<joint name="pusher_x" type="slide" axis="1 0 0" armature="10"/>'
         '<joint name="pusher_y" type="slide" axis="0 1 0" armature="10"/>'
         '<joint name="pusher_z" type="slide" axis="0 0 1" armature="10"/>'
@@ -83,6 +90,8 @@ class MujocoTabletop:
         xml = xml.replace("</worldbody>", _pusher_xml(self._park) + "</worldbody>", 1)
         xml = xml.replace("</mujoco>", '<contact><exclude body1="world" body2="pusher"/></contact></mujoco>', 1)
         model = mujoco.MjModel.from_xml_string(xml)
+        # Sleeping before the data exists: MjData sets every tree's sleep state from the flag.
+        model.opt.enableflags |= int(mujoco.mjtEnableBit.mjENBL_SLEEP)
         data = mujoco.MjData(model)
         body_object = np.full(model.nbody, -1, np.int32)
         object_body = np.empty(len(scene.objects), np.int32)

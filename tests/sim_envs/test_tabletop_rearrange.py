@@ -138,6 +138,33 @@ def test_push_backend_refuses_bad_start_points_and_pushes():
     sim.close()
 
 
+def test_resting_objects_sleep_and_what_the_fingertip_touches_wakes():
+    """Objects at rest sleep (MuJoCo island sleeping): a push far from the box leaves it exactly
+    where it was, the can it meets wakes and moves; the fingertip never sleeps; a pose written by
+    hand wakes its object and shows at once in the object's box."""
+    import mujoco
+
+    sim = MujocoTabletop(_two_object_scene())
+    model, data = sim.model, sim.data
+    assert model.opt.enableflags & int(mujoco.mjtEnableBit.mjENBL_SLEEP)
+    trees = [int(model.body_treeid[b]) for b in sim.mj.object_body]
+    finger_tree = int(model.body_treeid[model.geom_bodyid[sim._finger_geom]])
+    assert model.tree_sleep_policy[finger_tree] == int(mujoco.mjtSleepPolicy.mjSLEEP_NEVER)
+    out = sim.push((-0.1, -0.35), 0.0, 0.1)  # through empty table: physics runs, nothing is touched
+    assert out.executed and not out.contact
+    assert all(data.tree_asleep[t] >= 0 for t in trees), data.tree_asleep
+    before = sim.object_poses()
+    out = sim.push((-0.3, 0.0), 0.0, 0.15)
+    after = sim.object_poses()
+    assert out.executed and out.contact and 0.04 < after[0, 0] - before[0, 0] < 0.12
+    assert np.array_equal(after[1], before[1])  # asleep throughout: not a bit of drift
+    box = sim.object_aabbs()[1].copy()
+    sim.set_object_pose(1, before[1, :3] + np.array([0.05, 0.0, 0.0]))
+    assert data.tree_asleep[trees[1]] < 0  # awake
+    assert np.allclose(sim.object_aabbs()[1], box + np.array([0.05, 0.0, 0.0]), atol=1e-9)
+    sim.close()
+
+
 def test_scan_returns_posed_orbit_frames():
     env = _env()
     env.reset(seed=0)
