@@ -19,15 +19,22 @@ makespan is within 4/3 of the best possible).
   native call (rendering, a torch op) finishes before the handler runs. ``os._exit`` or a crash
   in native code cannot be caught in-process: they end the run without a record of that job
   (``--resume`` runs it again); use the process backend for agents that may do that;
-* ``process`` (default): ``workers`` processes (default: the CPU count), started with the
-  ``spawn`` method so no simulator or GL state is inherited. A job that runs past its
+* ``process`` (default): ``workers`` processes (default: the CPU count), forked from a fork
+  server (``forkserver``; ``spawn`` where the platform has none): a fresh interpreter started
+  once per parent process that imports the heavy modules once (:mod:`harness.runner._preload`:
+  torch, the text tower's libraries, MuJoCo, the job modules) and nothing of the parent's
+  state, so no simulator or GL state is inherited and a worker starts warm instead of spending
+  about 5 s of CPU on imports. Each worker takes the parent's environment variables as they are
+  when it starts, as a spawned one would. A job that runs past its
   ``timeout_s`` has its worker killed and is recorded as ``timeout``; a worker that dies (a crash
   in native code, ``os._exit``) is recorded as ``failed`` with its exit code
   (``job.failure_record``). Both are replaced and the run goes on. Each worker gets its share of
   the cores (:func:`~harness.runner.jobs.worker_thread_share`, used by the map jobs). Workers die
-  with the process that started them, even when it is killed with ``SIGKILL`` (Linux: a
-  parent-death signal; elsewhere a thread that watches the parent), and with them the
-  multiprocessing resource tracker, which exits once no process holds its pipe;
+  with the process that started them, even when it is killed with ``SIGKILL``: the fork server
+  exits when its parent does, and a worker dies with the process it was forked from (Linux: a
+  parent-death signal; elsewhere a thread that watches it) and when the process that started the
+  pool is gone; with them goes the multiprocessing resource tracker, which exits once no process
+  holds its pipe;
 * ``ray``: ``ray.remote`` tasks on a cluster (``address="auto"``, ``"HOST:PORT"`` or
   ``"ray://host:10001"``) or a local Ray instance (``address=None``); timeouts cancel the task.
   Needs the ``ray`` extra. :func:`check_backend` probes the cluster with a bounded TCP connect
@@ -60,6 +67,9 @@ _log = logging.getLogger(__name__)
 
 _PR_SET_PDEATHSIG = 1
 """``prctl`` option (``<linux/prctl.h>``): the signal a process gets when its parent dies."""
+
+_PRELOAD = ("harness.runner._preload",)
+"""What the fork server imports before it forks any worker."""
 
 
 class RayUnavailableError(ConceptFusionError, RuntimeError):
@@ -136,17 +146,34 @@ def _serial(jobs: list[Job]) -> Iterator[dict]:
         yield from records  # the alarm is off while the caller handles the records
 
 
-def _watch_parent(parent_pid: int) -> None:
+def _alive(pid: int) -> bool:
+    try:
+        os.kill(pid, 0)
+    except ProcessLookupError:
+        return False
+    except PermissionError:  # someone else's process: it exists
+        return True
+    return True
+
+
+def _orphaned(direct_pid: int, parent_pid: int) -> bool:
+    return os.getppid() != direct_pid or not _alive(parent_pid)
+
+
+def _watch_parent(direct_pid: int, parent_pid: int) -> None:
     while True:
         time.sleep(0.5)
-        if os.getppid() != parent_pid:
+        if _orphaned(direct_pid, parent_pid):
             os._exit(1)
 
 
 def _die_with_parent(parent_pid: int) -> None:
-    """Make this worker process exit when ``parent_pid`` (the process that started it) dies,
-    even by ``SIGKILL``: ``prctl(PR_SET_PDEATHSIG, SIGKILL)`` on Linux, else a daemon thread that
-    polls :func:`os.getppid`. A parent that died before the signal was armed is caught too."""
+    """Make this worker process exit when ``parent_pid`` (the process that started the pool)
+    dies, even by ``SIGKILL``. The process it was forked from (``parent_pid`` itself when spawned,
+    else the fork server, which exits with ``parent_pid``) gets a ``prctl(PR_SET_PDEATHSIG,
+    SIGKILL)`` on Linux, else a daemon thread that polls both. A parent that died before the
+    signal was armed is caught too."""
+    direct_pid = os.getppid()
     armed = False
     if sys.platform.startswith("linux"):
         try:
@@ -154,10 +181,10 @@ def _die_with_parent(parent_pid: int) -> None:
             armed = libc.prctl(_PR_SET_PDEATHSIG, int(signal.SIGKILL), 0, 0, 0) == 0
         except (OSError, AttributeError):  # no libc with prctl
             armed = False
-    if os.getppid() != parent_pid:  # orphaned already
+    if direct_pid == 1 or _orphaned(direct_pid, parent_pid):  # orphaned already
         os._exit(1)
-    if not armed:
-        threading.Thread(target=_watch_parent, args=(parent_pid,), name="cf-watch-parent", daemon=True).start()
+    if not armed or direct_pid != parent_pid:
+        threading.Thread(target=_watch_parent, args=(direct_pid, parent_pid), name="cf-watch-parent", daemon=True).start()
 
 
 def one_blas_thread():
@@ -180,11 +207,14 @@ def one_blas_thread():
     return threadpool_limits(limits=1, user_api="blas")
 
 
-def _worker_main(inbox, outbox, threads: int, parent_pid: int) -> None:
+def _worker_main(inbox, outbox, threads: int, parent_pid: int, environ: dict[str, str]) -> None:
     """Worker loop: run jobs until told to stop (``None``); ``threads`` is the worker's share of
-    the cores, for the jobs that limit their threads to it. The worker dies with ``parent_pid``."""
+    the cores, for the jobs that limit their threads to it; ``environ`` the parent's environment
+    variables when it started the worker. The worker dies with ``parent_pid``."""
     _die_with_parent(parent_pid)
     signal.signal(signal.SIGINT, signal.SIG_IGN)  # the parent handles Ctrl-C
+    os.environ.clear()
+    os.environ.update(environ)
     os.environ[WORKER_THREADS_ENV] = str(threads)
     while True:
         item = inbox.get()
@@ -197,7 +227,8 @@ def _worker_main(inbox, outbox, threads: int, parent_pid: int) -> None:
 class _Worker:
     def __init__(self, ctx, outbox, threads: int) -> None:
         self.inbox = ctx.Queue()
-        self.proc = ctx.Process(target=_worker_main, args=(self.inbox, outbox, threads, os.getpid()), daemon=True)
+        self.proc = ctx.Process(target=_worker_main, args=(self.inbox, outbox, threads, os.getpid(), dict(os.environ)),
+                                daemon=True)
         self.proc.start()
         self.job: tuple[int, Job] | None = None
         self.started = 0.0
@@ -212,8 +243,19 @@ class _Worker:
         self.proc.join(timeout=5)
 
 
+def _pool_context():
+    """The multiprocessing context of the process backend: a fork server that has imported
+    :data:`_PRELOAD` (set before the server starts; a server already running keeps its own),
+    else ``spawn``."""
+    if "forkserver" not in mp.get_all_start_methods():
+        return mp.get_context("spawn")
+    ctx = mp.get_context("forkserver")
+    ctx.set_forkserver_preload(list(_PRELOAD))
+    return ctx
+
+
 def _process_pool(jobs: list[Job], workers: int) -> Iterator[dict]:
-    ctx = mp.get_context("spawn")
+    ctx = _pool_context()
     outbox = ctx.Queue()
     pending = [(i, jobs[i]) for i in longest_first(jobs)][::-1]
     size = max(1, min(workers, len(jobs)))

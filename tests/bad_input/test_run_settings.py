@@ -274,7 +274,8 @@ def test_workers_and_the_resource_tracker_die_with_a_killed_parent(tmp_path):
             time.sleep(0.05)
         below = _descendants(run.pid)
         assert len(list(marks.iterdir())) == 2, "the workers did not start their jobs"
-        assert sum("spawn_main" in c for c in below.values()) == 2, below
+        # the fork server and the two workers forked from it (all three run its command line)
+        assert sum("multiprocessing.forkserver" in c for c in below.values()) == 3, below
         assert any("resource_tracker" in c for c in below.values()), below
         os.kill(run.pid, signal.SIGKILL)
         run.wait()

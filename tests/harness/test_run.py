@@ -147,12 +147,64 @@ def test_process_pool_and_ray_give_the_serial_results():
     assert any(o[3] == "ok" and '"success": true' in o[4] for o in serial)  # the oracle solves some
 
 
-def test_a_timed_out_episode_is_recorded_and_the_run_goes_on():
+SLOW = '''
+import time
+
+
+class SleepsInReset:
+    """Takes a minute to reset: past any short timeout."""
+
+    privileged = False
+
+    def reset(self, seed=None):
+        time.sleep(60)
+
+    def act(self, observation, info=None):
+        return None
+'''
+
+
+def test_a_timed_out_episode_is_recorded_and_the_run_goes_on(tmp_path, monkeypatch):
+    (tmp_path / "cf_slow_agent.py").write_text(SLOW)
+    monkeypatch.syspath_prepend(str(tmp_path))
     jobs = _cheap_jobs(1)
-    slow = type(jobs[0])(**{**jobs[0].__dict__, "timeout_s": 0.01})
+    slow = type(jobs[0])(**{**jobs[0].__dict__, "agent": "cf_slow_agent:SleepsInReset", "agent_kwargs": {}, "timeout_s": 1.0})
     recs = {r["agent"]: r for r in run_jobs([slow, jobs[-1]], backend="process", workers=2)}
     assert recs[slow.agent]["status"] == "timeout" and "exceeded" in recs[slow.agent]["error"]
     assert recs[jobs[-1].agent]["status"] == "ok"
+
+
+REPORTER = '''
+import os
+import sys
+
+
+class ReportsItsWorker:
+    """Fails at reset with what its worker process holds: an environment mark and whether the
+    text tower's library was imported before the job ran."""
+
+    privileged = False
+
+    def reset(self, seed=None):
+        raise RuntimeError(f"mark={os.environ.get('CF_WORKER_MARK')} preloaded={'sentence_transformers' in sys.modules}")
+
+    def act(self, observation, info=None):
+        return None
+'''
+
+
+def test_pool_workers_start_warm_with_the_parents_environment(tmp_path, monkeypatch):
+    """Workers fork from a fork server that imported the heavy modules once (the job did not
+    import the text tower's library, yet it is there) and take the environment variables the
+    parent has when each worker starts, also after the server started."""
+    (tmp_path / "cf_worker_reporter.py").write_text(REPORTER)
+    monkeypatch.syspath_prepend(str(tmp_path))
+    (job,) = _cheap_jobs(1)[:1]
+    job = type(job)(**{**job.__dict__, "agent": "cf_worker_reporter:ReportsItsWorker", "agent_kwargs": {}})
+    for mark in ("first", "second"):
+        monkeypatch.setenv("CF_WORKER_MARK", mark)
+        (rec,) = run_jobs([job], backend="process", workers=1)
+        assert rec["status"] == "failed" and f"mark={mark} preloaded=True" in rec["error"], rec["error"]
 
 
 def _cli(*args, **kw):
