@@ -132,7 +132,7 @@ def run(task: str, agent_name: str, encoder: str, episodes: int, options: dict |
     timer = ExclusiveTimer()
     steps, walls, successes = 0, [], 0
     with ExitStack() as stack:
-        from harness.runner.backends import one_blas_thread
+        from harness.runner.jobs import one_blas_thread
 
         stack.enter_context(one_blas_thread())  # as every harness job runs
         for p in _patches(timer, agent):

@@ -15,12 +15,14 @@ from __future__ import annotations
 import contextlib
 import importlib
 import os
+import time
 from typing import Iterable, Iterator, Protocol, runtime_checkable
 
 from conceptfusion.perception.encoders import THREADS_ENV
 from harness.runner.results import make_record
 
-__all__ = ["Job", "JobTimeout", "job_record", "import_plugins", "WORKER_THREADS_ENV", "worker_thread_share"]
+__all__ = ["Job", "JobTimeout", "job_record", "import_plugins", "WORKER_THREADS_ENV", "worker_thread_share",
+           "run_job", "one_blas_thread", "expected_seconds", "longest_first"]
 
 WORKER_THREADS_ENV = THREADS_ENV
 """Set by the process backend in each worker: that worker's share of the CPU cores (encoders
@@ -112,3 +114,53 @@ def worker_thread_share() -> Iterator[None]:
         yield
     finally:
         torch.set_num_threads(before)
+
+
+def one_blas_thread():
+    """A context in which the BLAS libraries loaded so far (numpy's and scipy's) run on one
+    thread, restored on exit; every job runs in one (:func:`run_job`). It looks the libraries
+    up afresh each time, so those an earlier job loaded count too (the map's own
+    :func:`conceptfusion.map._threads.one_blas_thread` keeps the set it found first, for the
+    per-frame cost).
+
+    numpy's OpenBLAS otherwise keeps a thread per core that spins after each matrix product,
+    burning the CPU the next render or proposal pass needs: in a worker of a full pool (one core
+    each), a search step took 78 ms of CPU with it and 46 ms without, for the same wall time.
+    Alone on the machine one thread is faster too: the spinning threads hold the core
+    onnxruntime's second thread wants (a v2 search step: 33-35 ms wall and 58-63 ms CPU with two
+    BLAS threads, 29 ms and 34 ms with one). The results are the same (its products split rows,
+    not sums, across threads).
+    """
+    from threadpoolctl import threadpool_limits
+
+    return threadpool_limits(limits=1, user_api="blas")
+
+
+def run_job(job: Job) -> list[dict]:
+    """Run ``job`` into its records, as every backend does (module level, so that Ray ships it by
+    reference); a
+    ``SystemExit`` inside the job becomes its ``failed`` record. numpy's BLAS runs on one thread
+    during the job (:func:`one_blas_thread`; restored afterwards, for the serial backend's
+    caller)."""
+    t0 = time.monotonic()
+    try:
+        with one_blas_thread():
+            return job.run()
+    except SystemExit as exc:
+        return [job.failure_record("failed", f"SystemExit: the job called sys.exit({exc.code!r}); recorded as failed",
+                                   time.monotonic() - t0)]
+
+
+def expected_seconds(job: Job) -> float:
+    """A job's ``expected_s`` when it has a positive finite one, else 1."""
+    value = getattr(job, "expected_s", None)
+    try:
+        value = float(value)
+    except (TypeError, ValueError):
+        return 1.0
+    return value if 0 < value < float("inf") else 1.0
+
+
+def longest_first(jobs: list[Job]) -> list[int]:
+    """Indices of ``jobs`` by :func:`expected_seconds`, longest first; ties keep their order."""
+    return sorted(range(len(jobs)), key=lambda i: -expected_seconds(jobs[i]))

@@ -4,7 +4,7 @@ from __future__ import annotations
 
 from types import SimpleNamespace
 
-from harness.runner.backends import expected_seconds, longest_first
+from harness.runner.jobs import expected_seconds, longest_first
 from harness.runner.map_jobs import map_suite_jobs
 from harness.runner.run import RunConfig, episode_jobs
 from harness.runner.suites import get_suite
