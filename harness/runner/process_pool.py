@@ -40,8 +40,6 @@ _PRELOAD = ("harness.runner._preload",)
 """What the fork server imports before it forks any worker."""
 
 
-
-
 def _alive(pid: int) -> bool:
     try:
         os.kill(pid, 0)
@@ -65,10 +63,10 @@ def _watch_parent(direct_pid: int, parent_pid: int) -> None:
 
 def _die_with_parent(parent_pid: int) -> None:
     """Make this worker process exit when ``parent_pid`` (the process that started the pool)
-    dies, even by ``SIGKILL``. The process it was forked from (``parent_pid`` itself when spawned,
-    else the fork server, which exits with ``parent_pid``) gets a ``prctl(PR_SET_PDEATHSIG,
-    SIGKILL)`` on Linux, else a daemon thread that polls both. A parent that died before the
-    signal was armed is caught too."""
+    dies, even by ``SIGKILL``. On Linux the worker arms ``prctl(PR_SET_PDEATHSIG, SIGKILL)`` for
+    the death of the process it was forked from (``parent_pid`` itself when spawned, else the fork
+    server, which exits with ``parent_pid``); where the two differ, or the signal cannot be armed,
+    a daemon thread polls both. A parent that died before the signal was armed is caught too."""
     direct_pid = os.getppid()
     armed = False
     if sys.platform.startswith("linux"):
