@@ -22,7 +22,7 @@ import numpy as np
 
 from conceptfusion._checks import as_float_array
 from conceptfusion.errors import ShapeError
-from conceptfusion.map.regions import Region, SupportTest, drop_support
+from conceptfusion.map.regions import Region, SupportTest, support_mask
 
 __all__ = [
     "NEGATIVE_PHRASES",
@@ -224,17 +224,17 @@ def locate(
 
 
 def _without_support(points_n3, normals_n3, regions: list[Region], test: SupportTest, min_points: int) -> tuple[list[Region], int]:
-    """``regions`` each without the surface it stands on (:func:`drop_support`), those left
+    """``regions`` each without the surface it stands on (:func:`~conceptfusion.map.regions.drop_support`), those left
     with at least ``min_points`` points, re-ranked as :func:`connected_regions` ranks; and how
     many regions were dropped."""
     up = normals_n3[:, 2] >= test.up_cos
+    up_idx = np.flatnonzero(up)  # once for every region
     out = []
     for reg in regions:
-        kept, z0 = drop_support(points_n3, up, reg.indices_n, test)
-        if z0 is None:
+        keep, z0 = support_mask(points_n3, up, up_idx, reg.indices_n.astype(np.int64), test)
+        if keep is None:
             out.append(reg)
-        elif len(kept) >= min_points:
-            keep = np.isin(reg.indices_n, kept, assume_unique=True)
+        elif keep.sum() >= min_points:
             out.append(Region(points_n3=reg.points_n3[keep], scores_n=reg.scores_n[keep], indices_n=reg.indices_n[keep]))
     out.sort(key=lambda reg: (-reg.score, -reg.num_points))
     return out, len(regions) - len(out)

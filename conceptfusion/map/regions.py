@@ -14,7 +14,7 @@ import numpy as np
 from conceptfusion._checks import as_array, as_float_array
 from conceptfusion.errors import ShapeError
 
-__all__ = ["Region", "region_from_points", "SupportTest", "drop_support"]
+__all__ = ["Region", "region_from_points", "SupportTest", "drop_support", "support_mask"]
 
 
 @dataclass(frozen=True)
@@ -155,8 +155,6 @@ def drop_support(points_n3: np.ndarray, up_n: np.ndarray, region_idx: np.ndarray
     Shape:
         ``points_n3`` (N, 3), ``up_n`` (N,) bool, ``region_idx`` (R,) int -> (R',) int, float.
     """
-    from scipy import ndimage
-
     points_n3 = as_float_array("points_n3", np.asarray(points_n3), shape=(None, 3))
     up_n = as_array("up_n", np.asarray(up_n), shape=(len(points_n3),), kinds="b")
     idx = np.asarray(region_idx)
@@ -166,14 +164,29 @@ def drop_support(points_n3: np.ndarray, up_n: np.ndarray, region_idx: np.ndarray
     if idx.min() < 0 or idx.max() >= len(points_n3):
         raise IndexError(f"region_idx: expected map point indices in [0, {len(points_n3)}), "
                          f"got values from {idx.min()} to {idx.max()}")
+    keep, z0 = support_mask(points_n3, up_n, np.flatnonzero(up_n), idx, test)
+    return (idx if keep is None else idx[keep]), z0
+
+
+def support_mask(points_n3: np.ndarray, up_n: np.ndarray, up_idx: np.ndarray, idx: np.ndarray,
+                 test: SupportTest) -> tuple[np.ndarray | None, float | None]:
+    """:func:`drop_support` on checked inputs, for callers that test many regions of one map:
+    ``up_idx`` (the indices of ``up_n``'s true entries, increasing) is computed once per map, so
+    a region's ring test looks only at the upward-facing points, not at every map point.
+
+    Returns ``(keep, support_z)``: the mask over ``idx`` of the kept points (None: all kept, no
+    support found) and the support's height.
+    """
+    from scipy import ndimage
+
     z_up = points_n3[idx[up_n[idx]], 2]
     if z_up.size < 10:
-        return idx, None
+        return None, None
     bins = np.floor(z_up / test.level_bin).astype(np.int64)
     levels, counts = np.unique(bins, return_counts=True)
     levels = levels[counts >= max(5, test.min_share * z_up.size)]
     if levels.size == 0:
-        return idx, None
+        return None, None
     # The region's columns, and the ring of columns around them, on a local grid.
     xy = points_n3[idx, :2]
     origin = np.floor(xy.min(axis=0) / test.cell).astype(np.int64) - test.ring
@@ -185,12 +198,13 @@ def drop_support(points_n3: np.ndarray, up_n: np.ndarray, region_idx: np.ndarray
     ring = ndimage.binary_dilation(occupied, structure=np.ones((size, size), bool)) & ~occupied
     n_ring = int(ring.sum())
     if n_ring == 0:
-        return idx, None
+        return None, None
     # Upward-facing map points outside the region over the local grid.
     lo = (origin * test.cell).astype(np.float64)
     hi = lo + np.asarray(shape) * test.cell
-    near = up_n & np.all((points_n3[:, :2] >= lo) & (points_n3[:, :2] < hi), axis=1)
-    near[idx] = False
+    up_xy = points_n3[up_idx, :2]
+    near = up_idx[np.all((up_xy >= lo) & (up_xy < hi), axis=1)]
+    near = near[~np.isin(near, idx, assume_unique=True)]
     near_pts = points_n3[near]
     near_cols = np.floor(near_pts[:, :2] / test.cell).astype(np.int64) - origin
     inside = np.all((near_cols >= 0) & (near_cols < np.asarray(shape)), axis=1)
@@ -202,5 +216,5 @@ def drop_support(points_n3: np.ndarray, up_n: np.ndarray, region_idx: np.ndarray
         hit = np.zeros(shape, bool)
         hit[near_cols[at, 0], near_cols[at, 1]] = True
         if (hit & ring).sum() >= test.ring_cover * n_ring:
-            return idx[points_n3[idx, 2] > z0 + test.above], z0
-    return idx, None
+            return points_n3[idx, 2] > z0 + test.above, z0
+    return None, None
