@@ -1,6 +1,6 @@
 """What the process backend's fork server imports once, so that its workers start warm.
 
-The process backend forks its workers from a fork server (:mod:`harness.runner.backends`), a
+The process backend forks its workers from a fork server (:mod:`harness.runner.process_pool`), a
 fresh interpreter that imports this module and nothing of the parent's state. Each worker then
 starts with these modules already imported instead of importing them itself: torch, the
 sentence-transformers stack of the MiniLM text tower, onnxruntime, MuJoCo and the harness's

@@ -138,10 +138,9 @@ def one_blas_thread():
 
 def run_job(job: Job) -> list[dict]:
     """Run ``job`` into its records, as every backend does (module level, so that Ray ships it by
-    reference); a
-    ``SystemExit`` inside the job becomes its ``failed`` record. numpy's BLAS runs on one thread
-    during the job (:func:`one_blas_thread`; restored afterwards, for the serial backend's
-    caller)."""
+    reference); a ``SystemExit`` inside the job becomes its ``failed`` record. numpy's BLAS runs
+    on one thread during the job (:func:`one_blas_thread`; restored afterwards, for the serial
+    backend's caller)."""
     t0 = time.monotonic()
     try:
         with one_blas_thread():

@@ -81,8 +81,6 @@ def _die_with_parent(parent_pid: int) -> None:
         threading.Thread(target=_watch_parent, args=(direct_pid, parent_pid), name="cf-watch-parent", daemon=True).start()
 
 
-
-
 def _worker_main(inbox, outbox, threads: int, parent_pid: int, environ: dict[str, str]) -> None:
     """Worker loop: run jobs until told to stop (``None``); ``threads`` is the worker's share of
     the cores, for the jobs that limit their threads to it; ``environ`` the parent's environment

@@ -199,7 +199,7 @@ def test_pool_workers_start_warm_with_the_parents_environment(tmp_path, monkeypa
     parent has when each worker starts, also after the server started."""
     (tmp_path / "cf_worker_reporter.py").write_text(REPORTER)
     monkeypatch.syspath_prepend(str(tmp_path))
-    (job,) = _cheap_jobs(1)[:1]
+    job = _cheap_jobs(1)[0]
     job = type(job)(**{**job.__dict__, "agent": "cf_worker_reporter:ReportsItsWorker", "agent_kwargs": {}})
     for mark in ("first", "second"):
         monkeypatch.setenv("CF_WORKER_MARK", mark)
