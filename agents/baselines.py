@@ -51,6 +51,7 @@ class RandomWalker:
     """Random velocity commands held for a few steps; stops with probability ``p_stop`` per step."""
 
     privileged = False
+    reads_images = False  # blind: it never looks at the observation
 
     def __init__(self, *, p_stop: float = 0.01, hold_steps: int = 4, seed: int = 0) -> None:
         self.p_stop, self.hold, self.seed = float(p_stop), int(hold_steps), int(seed)

@@ -31,7 +31,10 @@ class Agent(Protocol):
 
     # Optional: ``reads_scan = False`` says a tabletop agent never reads the observation's orbit
     # scan (``scan_*``), and the runner then renders none (see ``harness.runner.tasks``); an
-    # agent without the attribute gets the scan the suite sets.
+    # agent without the attribute gets the scan the suite sets. ``reads_images = False`` says a
+    # search agent never reads the camera frame (``rgb``, ``depth``, ``K``, ``cam_to_world``) nor
+    # the segmentation: the runner then renders none unless the episode is recorded, and its
+    # observations are ``base_pose`` and ``goal`` only.
 
     def reset(self, *, seed: int | None = None) -> None:
         """Forget the last episode; ``seed`` seeds any randomness of the agent."""

@@ -122,17 +122,24 @@ def close_cached_envs() -> None:
     _ENV_CACHE.clear()
 
 
-def env_kwargs_for(task: str, env_kwargs: dict, agent) -> dict:
+def env_kwargs_for(task: str, env_kwargs: dict, agent, *, records: bool = False) -> dict:
     """A suite's environment settings for ``task`` as an ``agent`` gets them, with the
     ground-truth segmentation rendered only for a
     privileged agent: the others never see ``info``, and skipping its render pass saves a third
     of a tabletop episode's rendering without changing any observation. A tabletop agent that
     says it never reads the orbit scan (``reads_scan`` False: the single-frame and random pushers,
     the oracle) gets no scan either: rendering it costs a fifth of such an episode, and nothing
-    it reads changes. Agents without the attribute get everything the suite sets."""
+    it reads changes. A search agent that says it never looks (``reads_images`` False: the random
+    walker, the floor-plan oracle) gets no camera at all (``camera=False``: nine tenths of such
+    an episode's CPU went to rendering frames nobody read) unless the episode ``records``
+    (a recording keeps the frames for its replay). Agents without the attributes get everything
+    the suite sets."""
     kwargs = {"segmentation": bool(getattr(agent, "privileged", False)), **env_kwargs}
     if task == "tabletop_rearrange" and kwargs.get("scan_frames") and getattr(agent, "reads_scan", True) is False:
         kwargs["scan_frames"] = 0
+    if (task == "object_search" and not records and "camera" not in env_kwargs
+            and getattr(agent, "reads_images", True) is False):
+        kwargs.update(camera=False, segmentation=False)
     return kwargs
 
 
@@ -196,7 +203,7 @@ def _description(job: EpisodeJob, scene=None) -> dict:
 
 
 def _run_search(job: EpisodeJob, agent, recorder: EpisodeRecorder | None = None) -> tuple[dict, dict, str | None, dict]:
-    kwargs = env_kwargs_for(job.task, job.env_kwargs, agent)
+    kwargs = env_kwargs_for(job.task, job.env_kwargs, agent, records=recorder is not None)
     env = _cached_env(("object_search", tuple(sorted(kwargs.items()))), lambda: _search_env(kwargs))
     path: list[list[float]] = []
     info, steps, timings = _rollout(env, agent, job, on_step=lambda o, i: path.append([round(float(v), 3) for v in o["base_pose"][:2]]),

@@ -72,7 +72,11 @@ class ObjectSearchEnv(EpisodeLifecycle, LastFrameRendering, gym.Env):
     goal id, the distance to the goal; at reset also the scene graph, the free cells ``free_grid`` (H, W) bool with
     ``grid_origin`` and ``grid_cell``, the goal's box ``goal_aabb`` (2, 3) and
     ``success_distance``) is in ``info`` only; ``segmentation=False`` leaves the segmentation out
-    of ``info`` and skips its render pass (for agents that never read ``info``).
+    of ``info`` and skips its render pass (for agents that never read ``info``). ``camera=False``
+    renders nothing: the observations are ``base_pose`` and ``goal`` only (for agents that never
+    look, such as a random walker or an oracle that reads the floor plan; the base moves and
+    every metric is computed exactly as with the camera on). It needs ``segmentation=False`` and
+    no ``render_mode``.
 
     **Episodes**: pass ``options={"episode": Episode}`` to reset (the harness does, from
     ``scenes/household/episodes-v1.jsonl``), or ``options={"episode_index": i}`` to pick the
@@ -111,11 +115,18 @@ class ObjectSearchEnv(EpisodeLifecycle, LastFrameRendering, gym.Env):
         max_steps: int | None = None,
         scenes_root: str | None = None,
         segmentation: bool = True,
+        camera: bool = True,
         render_mode: str | None = None,
     ) -> None:
         where = self.env_name
         check_render_mode(render_mode)
         self.segmentation = check_bool(where, "segmentation", segmentation)
+        self.camera = check_bool(where, "camera", camera)
+        if not self.camera and (self.segmentation or render_mode is not None):
+            raise SimError(
+                f"{where}: camera=False renders nothing, so it needs segmentation=False and render_mode=None; "
+                f"got segmentation={self.segmentation!r}, render_mode={render_mode!r}"
+            )
         width, height = check_image_size(where, width, height)
         fovy_deg = check_fovy(where, fovy_deg)
         camera_pitch_deg = check_number(where, "camera_pitch_deg", camera_pitch_deg, low=-90.0, high=90.0, low_open=True, high_open=True)
@@ -135,7 +146,7 @@ class ObjectSearchEnv(EpisodeLifecycle, LastFrameRendering, gym.Env):
         self.action_space = spaces.Box(_ACTION_LOW, _ACTION_HIGH, dtype=np.float32)
         self.observation_space = spaces.Dict(
             {
-                **frame_spaces(height, width),
+                **(frame_spaces(height, width) if self.camera else {}),
                 "base_pose": spaces.Box(-np.inf, np.inf, (3,), np.float64),
                 "goal": spaces.Text(max_length=_MAX_GOAL, min_length=1, charset=_GOAL_CHARSET),
             }
@@ -154,14 +165,17 @@ class ObjectSearchEnv(EpisodeLifecycle, LastFrameRendering, gym.Env):
         scene = resolve_scene(episode.scene, episode.scene_seed, scenes_root=self.scenes_root)
         if not scene.rooms:
             raise SimError(f"{self.env_name}: episode {episode.episode_id!r}: scene {scene.id} is not a household scene (no rooms)")
-        if self._scene_key != scene.id or self._camera is None:  # a new scene, or closed
+        closed = self._sim is None or (self.camera and self._camera is None)
+        if self._scene_key != scene.id or closed:
             if self._camera is not None:
                 self._camera.close()
+                self._camera = None
             self._sim = build_mujoco(scene)
-            self._camera = MujocoRGBDCamera(
-                self._sim.model, self._sim.data, self.width, self.height,
-                fovy_deg=self.fovy_deg, geom_object=self._sim.geom_object,
-            )
+            if self.camera:
+                self._camera = MujocoRGBDCamera(
+                    self._sim.model, self._sim.data, self.width, self.height,
+                    fovy_deg=self.fovy_deg, geom_object=self._sim.geom_object,
+                )
             occ = occupancy_grid(scene, cell=0.05)
             self._occ, self._free = occ, occ.clearance() > self.robot_radius
             self._scene_key = scene.id
@@ -267,10 +281,13 @@ class ObjectSearchEnv(EpisodeLifecycle, LastFrameRendering, gym.Env):
         return eye, eye + fwd
 
     def _observe(self):
-        self._camera.set_pose(*self.camera_eye_target())
-        f = self._camera.render(segmentation=self.segmentation)
-        self._last_frame = f
-        obs = {**f.observation(), "base_pose": self._pose.copy(), "goal": self.episode.instruction}
+        frame = {}
+        if self.camera:
+            self._camera.set_pose(*self.camera_eye_target())
+            f = self._camera.render(segmentation=self.segmentation)
+            self._last_frame = f
+            frame = f.observation()
+        obs = {**frame, "base_pose": self._pose.copy(), "goal": self.episode.instruction}
         info = {
             "episode_id": self.episode.episode_id,
             "scene_id": self.scene.id,

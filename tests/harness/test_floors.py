@@ -238,6 +238,7 @@ class NeverStops:
     """oracle-searcher, sabotaged: drives as before but never says stop."""
 
     privileged = True
+    reads_images = False
 
     def __init__(self):
         self.inner = make_agent("oracle-searcher")
@@ -269,7 +270,7 @@ def test_a_sabotaged_agent_fails_the_regression_run(tmp_path, suite, agent, buil
     that agent's calibrated floor: the regression command exits 1 and names it."""
     n = get_suite(suite).agent_limits[builtin]
     done = _run_cli(tmp_path, "--suite", suite, "--agent", agent, "--floor-as", f"{agent}={builtin}", "--limit", str(n),
-                    "--fail-fast", "--workers", "2")
+                    "--fail-fast", "--workers", "2", "--record", "none")
     assert done.returncode == 1, done.stdout + done.stderr
     assert "crashed" not in done.stderr  # it runs, it just does worse
     assert f"REGRESSION {suite}: {agent} succeeded on" in done.stderr

@@ -132,3 +132,41 @@ def test_without_segmentation_the_observations_are_the_same_and_info_has_none():
         assert np.array_equal(frames[True][key], frames[False][key], equal_nan=True), key
     with pytest.raises(TypeError, match="segmentation: expected True or False"):
         ObjectSearchEnv(segmentation=1)
+
+
+def test_without_the_camera_the_base_and_every_metric_move_as_with_it(episodes):
+    """camera=False renders nothing: the observations are the pose and goal only, and the same
+    actions (walls hit included) give the same poses, info and rewards as with the camera on."""
+    actions = [[0.5, 0.3, 0], [0.6, 0.0, 0]] * 12 + [[0.1, -1.0, 0], [0.0, 0.0, 1]]
+    runs = {}
+    for camera in (True, False):
+        e = ObjectSearchEnv(width=64, height=48, segmentation=False, camera=camera, episodes=episodes[:3])
+        if not camera:
+            check_env(e, skip_render_check=True)
+            assert set(e.observation_space.spaces) == {"base_pose", "goal"}
+        obs, info = e.reset(options={"episode": episodes[2]})
+        steps = [(obs, 0.0, False, False, info)]
+        for a in actions:
+            steps.append(e.step(np.array(a, np.float32)))
+            if steps[-1][2] or steps[-1][3]:
+                break
+        assert e.observation_space.contains(steps[-1][0])
+        runs[camera] = steps
+        e.close()
+    assert len(runs[True]) == len(runs[False]) and runs[False][-1][4]["collisions"] > 0
+    for (o1, r1, t1, u1, i1), (o0, r0, t0, u0, i0) in zip(runs[True], runs[False]):
+        assert set(o0) == {"base_pose", "goal"} and o1["goal"] == o0["goal"]
+        assert np.array_equal(o1["base_pose"], o0["base_pose"]) and (r1, t1, u1) == (r0, t0, u0)
+        for key in ("distance_to_goal", "steps", "collisions", "path_length", "success", "spl", "object_names"):
+            if key in i1:
+                assert i1[key] == i0[key], key
+
+
+@pytest.mark.parametrize("kwargs, match", [
+    ({"camera": 0}, "camera: expected True or False"),
+    ({"camera": False}, "camera=False renders nothing.*segmentation=False.*got segmentation=True"),
+    ({"camera": False, "segmentation": False, "render_mode": "rgb_array"}, "render_mode=None.*'rgb_array'"),
+])
+def test_bad_camera_settings(kwargs, match):
+    with pytest.raises((TypeError, ValueError), match=match):
+        ObjectSearchEnv(**kwargs)
