@@ -10,15 +10,14 @@ from pathlib import Path
 import pytest
 
 CONFTEST = Path(__file__).resolve().parent / "conftest.py"
+NAMES = ("OMP_NUM_THREADS", "OPENBLAS_NUM_THREADS", "MKL_NUM_THREADS", "CF_THREADS")
 PROBE = (
     "import json, os, runpy, sys\n"
     f"runpy.run_path({str(CONFTEST)!r})\n"
     "import numpy, threadpoolctl\n"
     "blas = sorted({i['num_threads'] for i in threadpoolctl.threadpool_info() if i['user_api'] == 'blas'})\n"
-    "print(json.dumps({'blas': blas, **{k: os.environ.get(k) for k in "
-    "('OMP_NUM_THREADS', 'OPENBLAS_NUM_THREADS', 'MKL_NUM_THREADS', 'CF_THREADS')}}))\n"
+    f"print(json.dumps({{'blas': blas, **{{k: os.environ.get(k) for k in {NAMES!r}}}}}))\n"
 )
-NAMES = ("OMP_NUM_THREADS", "OPENBLAS_NUM_THREADS", "MKL_NUM_THREADS", "CF_THREADS")
 
 
 def _probe(**env):

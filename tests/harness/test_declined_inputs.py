@@ -1,8 +1,6 @@
 """Agents that never read part of the observation do not get it rendered (tabletop agents that
 never read the orbit scan, search agents that never look), and their episodes are unchanged."""
 
-import dataclasses
-
 import pytest
 
 from agents.registry import make_agent
@@ -15,6 +13,15 @@ from harness.runner.tasks import close_cached_envs, run_episode
 def _jobs(agent: str, limit: int = 2, suite: str = "regression-rearrange"):
     suite = get_suite(suite)
     return episode_jobs(suite, RunConfig(suites=(suite.name,), agents=(agent,), limit=limit, backend="serial"), "t")
+
+
+def _outcome(rec):
+    return rec["status"], rec["metrics"], rec["category"], rec["extras"]
+
+
+def _everything_rendered(task, kwargs, agent, **_):
+    """``env_kwargs_for`` as it was before agents could decline the scan or the camera."""
+    return {"segmentation": bool(agent.privileged), **kwargs}
 
 
 @pytest.mark.parametrize("agent, reads", [("map-pusher", True), ("frame-pusher", False), ("random-pusher", False),
@@ -37,15 +44,12 @@ def test_an_agent_without_the_attribute_keeps_the_scan():
 
 @pytest.mark.parametrize("agent", ["frame-pusher", "oracle-pusher"])
 def test_leaving_the_scan_out_changes_no_record(agent, monkeypatch):
-    def outcome(rec):
-        return rec["status"], rec["metrics"], rec["category"], rec["extras"]
-
     try:
-        without = [outcome(run_episode(j)) for j in _jobs(agent)]
+        without = [_outcome(run_episode(j)) for j in _jobs(agent)]
         close_cached_envs()
-        # the same episodes with the scan rendered, as before agents could decline it
-        monkeypatch.setattr(tasks, "env_kwargs_for", lambda task, kwargs, a, **_: {"segmentation": bool(a.privileged), **kwargs})
-        with_scan = [outcome(run_episode(j)) for j in _jobs(agent)]
+        # the same episodes with the scan rendered
+        monkeypatch.setattr(tasks, "env_kwargs_for", _everything_rendered)
+        with_scan = [_outcome(run_episode(j)) for j in _jobs(agent)]
     finally:
         close_cached_envs()
     assert all(status == "ok" for status, *_ in without)
@@ -67,16 +71,13 @@ def test_only_search_agents_that_look_get_a_camera(agent, looks):
 
 @pytest.mark.parametrize("agent", ["random-walker", "oracle-searcher"])
 def test_leaving_the_camera_out_changes_no_record(agent, monkeypatch):
-    def outcome(rec):
-        return rec["status"], rec["metrics"], rec["category"], rec["extras"]
-
     try:
-        blind = [outcome(run_episode(j)) for j in _jobs(agent, 2, "regression-search")]
+        blind = [_outcome(run_episode(j)) for j in _jobs(agent, 2, "regression-search")]
         search_envs = [env for key, env in tasks._ENV_CACHE.items() if key[0] == "object_search"]
         assert search_envs and not any(env.unwrapped.camera for env in search_envs)
         close_cached_envs()
-        monkeypatch.setattr(tasks, "env_kwargs_for", lambda task, kwargs, a, **_: {"segmentation": bool(a.privileged), **kwargs})
-        seeing = [outcome(run_episode(j)) for j in _jobs(agent, 2, "regression-search")]
+        monkeypatch.setattr(tasks, "env_kwargs_for", _everything_rendered)
+        seeing = [_outcome(run_episode(j)) for j in _jobs(agent, 2, "regression-search")]
     finally:
         close_cached_envs()
     assert all(status == "ok" for status, *_ in blind)
