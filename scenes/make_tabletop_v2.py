@@ -28,14 +28,14 @@ FOLDER = "tabletop-v2"
 
 
 def episode_files(generator_seed: int, count: int, seeds, *, folder: str, episode_file: str,
-                  id_prefix: str = "tabletop-v2") -> dict[str, str]:
+                  id_prefix: str = "tabletop-v2", goal_groups: tuple[str, ...] | None = None) -> dict[str, str]:
     """Relative path under ``scenes/`` -> file text: ``count`` v2 rearrangement episodes drawn
-    from ``seeds`` with pushes inside the PyBullet Panda's reach (``episode_file``) and every
-    table they use (``<folder>/<scene id>.json``)."""
+    from ``seeds`` with pushes inside the PyBullet Panda's reach (``episode_file``; targets from
+    ``goal_groups`` only when given) and every table they use (``<folder>/<scene id>.json``)."""
     reach = PandaReach(TABLE)
     try:
         episodes, scenes = generate_tabletop_v2_episodes(generator_seed, count, seeds, reach=reach.reachable, scene_dir=folder,
-                                                         id_prefix=id_prefix)
+                                                         id_prefix=id_prefix, goal_groups=goal_groups)
     finally:
         reach.close()
     files = {episode_file: episodes_text(episodes)}

@@ -36,6 +36,7 @@ from sim_envs.scenes.descriptions import describe
 from sim_envs.scenes.episodes import MAX_LINE_DISTANCE, Episode, EpisodeSet, Goal
 from sim_envs.scenes.format import Scene, SceneObject
 from sim_envs.scenes.gen_tabletop_v2 import generate_tabletop_v2
+from sim_envs.scenes.splits import SPLIT_GROUPS, object_group
 
 __all__ = [
     "INSTRUCTION_KINDS", "MIN_TARGET_ASPECT", "ROLLING_TARGETS", "MIN_TARGET_HEIGHT", "MAX_TARGET_HEIGHT", "MAX_TARGET_FOOTPRINT", "CORRIDOR_GAP", "HAND_LEVEL", "HAND_GAP",
@@ -191,11 +192,15 @@ def v2_instruction(goals: Sequence[Goal]) -> str:
     return "push " + " and ".join(f"{g.description} to the {g.side} of the line" for g in goals)
 
 
-def _goals_for(scene: Scene, rng: np.random.Generator, reach: Reach | None) -> list[tuple[int, str]]:
-    """1-2 eligible (index, side) targets, or none."""
+def _goals_for(scene: Scene, rng: np.random.Generator, reach: Reach | None,
+               goal_groups: tuple[str, ...] | None = None) -> list[tuple[int, str]]:
+    """1-2 eligible (index, side) targets, or none; with ``goal_groups``, only objects of those
+    split groups are eligible."""
     p0, n = line_normal(scene)
     sides = {i: ("left" if float((np.asarray(o.position[:2]) - p0) @ n) > 0 else "right") for i, o in enumerate(scene.objects)}
-    eligible = [i for i in range(len(scene.objects)) if push_check(scene, i, sides[i], reach=reach).ok]
+    eligible = [i for i in range(len(scene.objects))
+                if (goal_groups is None or object_group(scene.objects[i]) in goal_groups)
+                and push_check(scene, i, sides[i], reach=reach).ok]
     if not eligible:
         return []
     want = 1 if rng.random() < 0.25 else 2  # two targets where a clean pair exists, mostly
@@ -213,20 +218,25 @@ def _goals_for(scene: Scene, rng: np.random.Generator, reach: Reach | None) -> l
 
 def generate_tabletop_v2_episodes(
     generator_seed: int, count: int, seeds: Sequence[int], *, reach: Reach | None = None, max_steps: int = 6,
-    scene_dir: str = "tabletop-v2", id_prefix: str = "tabletop-v2",
+    scene_dir: str = "tabletop-v2", id_prefix: str = "tabletop-v2", goal_groups: tuple[str, ...] | None = None,
 ) -> tuple[EpisodeSet, list[Scene]]:
     """``count`` rearrangement episodes on v2 scenes, one scene each.
 
     Scenes are :func:`~sim_envs.scenes.gen_tabletop_v2.generate_tabletop_v2` of ``seeds`` in
     order (a scene with no eligible target is skipped); targets, sides and descriptions are drawn
     with ``np.random.default_rng(generator_seed)``. Each episode's scene is referred to as
-    ``<scene_dir>/<scene id>.json``.
+    ``<scene_dir>/<scene id>.json``. ``goal_groups`` (split groups of
+    :func:`~sim_envs.scenes.splits.object_group`, e.g. ``("validation",)``) limits the targets to
+    objects of those groups; None: any object.
 
     Raises:
-        ValueError: ``count < 1`` or the seeds run out first.
+        ValueError: ``count < 1``, an unknown split group, or the seeds run out first.
     """
     if count < 1:
         raise ValueError(f"count: expected >= 1, got {count}")
+    unknown = sorted(set(goal_groups or ()) - set(SPLIT_GROUPS))
+    if unknown:
+        raise ValueError(f"goal_groups: {unknown} are not split groups; expected some of {', '.join(SPLIT_GROUPS)}")
     rng = np.random.default_rng(generator_seed)
     uses = {k: 0 for k in INSTRUCTION_KINDS}
     episodes, scenes = [], []
@@ -234,7 +244,7 @@ def generate_tabletop_v2_episodes(
         if len(episodes) == count:
             break
         scene = generate_tabletop_v2(int(seed))
-        picks = _goals_for(scene, rng, reach)
+        picks = _goals_for(scene, rng, reach, goal_groups)
         if not picks:
             continue
         tie = rng.permutation(len(INSTRUCTION_KINDS))

@@ -126,3 +126,37 @@ def test_v2_calibration_tables_regenerate_and_stay_out_of_every_suite_and_floor(
     assert not {e.scene_seed for e in eps} & floor_seeds
     for name in SUITES:
         assert not {sid for sid, _ in _suite_scenes(name)} & tables, name
+
+
+def test_v2_validation_tables_name_only_validation_objects_regenerate_and_stay_out_of_every_suite():
+    from scenes.make_validation_v2 import FOLDER, NUM_TABLE_EPISODES, REARRANGE_FILE, table_files
+    from scenes.shipped import ROOT
+    from sim_envs.scenes.format import load_scene
+    from sim_envs.scenes.splits import object_group
+    from tower_training.world_v2 import DataConfigV2
+
+    eps = load_episodes(ROOT / REARRANGE_FILE).episodes
+    assert len(eps) == NUM_TABLE_EPISODES and {splits().seed_role(e.scene_seed) for e in eps} == {"tower_val"}
+    groups = set()
+    for e in eps:
+        objects = {o.id: o for o in load_scene(ROOT / e.scene).objects}
+        groups |= {object_group(objects[g.object_id]) for g in e.goals}
+        # the tables hold no test instance
+        assert {object_group(o) for o in objects.values()} <= {"seen", "validation"}, e.episode_id
+    assert groups == {"validation"}
+    head = table_files(2)
+    assert head.pop(REARRANGE_FILE).splitlines() == (ROOT / REARRANGE_FILE).read_text().splitlines()[:3]
+    assert len(head) == 2 and all((ROOT / rel).read_text() == text for rel, text in head.items())
+    # apart from the tower's own validation arrangements, and from every suite
+    assert not {e.scene_seed for e in eps} & set(DataConfigV2().seeds("val", splits()))
+    tables = {Path(e.scene).stem for e in eps}
+    assert all(e.scene.startswith(f"{FOLDER}/") for e in eps)
+    for name in SUITES:
+        assert not {sid for sid, _ in _suite_scenes(name)} & tables, name
+
+
+def test_a_goal_group_that_is_not_a_split_group_is_refused():
+    from sim_envs.scenes.tabletop_v2_episodes import generate_tabletop_v2_episodes
+
+    with pytest.raises(ValueError, match="goal_groups: \\['unseen'\\] are not split groups"):
+        generate_tabletop_v2_episodes(0, 1, [300000], goal_groups=("unseen",))
