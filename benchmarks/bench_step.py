@@ -106,9 +106,9 @@ def _patches(timer: ExclusiveTimer, agent) -> list:
     return out
 
 
-EPISODE_FILES = {("search", "v1"): ("household", "episodes-v1.jsonl"), ("rearrange", "v1"): ("tabletop", "episodes-v1.jsonl"),
-                 ("search", "v2"): ("household-v2", "episodes-v2.jsonl"), ("rearrange", "v2"): ("tabletop-v2", "episodes-v2.jsonl")}
-"""(task, world) -> the shipped episode file (folder under ``scenes/``, file name)."""
+SUITE_OF = {("search", "v1"): "search", ("rearrange", "v1"): "rearrange", ("search", "v2"): "search-v2",
+            ("rearrange", "v2"): "rearrange-v2"}
+"""(task, world) -> the suite whose episodes and environment settings (camera, scan) are timed."""
 
 
 def run(task: str, agent_name: str, encoder: str, episodes: int, options: dict | None = None, world: str = "v1") -> dict:
@@ -118,17 +118,18 @@ def run(task: str, agent_name: str, encoder: str, episodes: int, options: dict |
     from harness.runner.tasks import env_kwargs_for
     from sim_envs.envs.object_search import ObjectSearchEnv
     from sim_envs.envs.tabletop_rearrange import TabletopRearrangeEnv
-    from sim_envs.scenes.episodes import SCENES_ROOT, load_episodes
+    from harness.runner.suites import SUITES
+    from sim_envs.scenes.episodes import load_episodes
 
-    folder, name = EPISODE_FILES[(task, world)]
-    eps = load_episodes(SCENES_ROOT / folder / name).episodes[:episodes]
+    suite = SUITES[SUITE_OF[(task, world)]]
+    eps = load_episodes(suite.episodes_file).episodes[:episodes]
     agent = make_agent(agent_name, encoder=encoder, **(options or {}))
     # As the harness builds them: the ground-truth segmentation pass only for a privileged
     # agent, the orbit scan only for an agent that reads it.
     if task == "search":
-        env = ObjectSearchEnv(**env_kwargs_for("object_search", {"width": 160, "height": 120}, agent))
+        env = ObjectSearchEnv(**env_kwargs_for("object_search", suite.env_kwargs, agent))
     else:
-        env = TabletopRearrangeEnv(**env_kwargs_for("tabletop_rearrange", {"width": 160, "height": 120, "scan_frames": 8}, agent))
+        env = TabletopRearrangeEnv(**env_kwargs_for("tabletop_rearrange", suite.env_kwargs, agent))
     timer = ExclusiveTimer()
     steps, walls, successes = 0, [], 0
     with ExitStack() as stack:
