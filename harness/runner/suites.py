@@ -47,7 +47,7 @@ from conceptfusion.names import lookup
 from sim_envs.scenes.episodes import SCENES_ROOT, Episode, load_episodes
 from sim_envs.scenes.splits import splits
 
-__all__ = ["Suite", "SUITES", "get_suite", "DEFAULT_SUITES", "SEARCH_V2_LIMIT", "suite_encoder", "suite_episodes", "FLOORS_FILE",
+__all__ = ["Suite", "SUITES", "get_suite", "DEFAULT_SUITES", "REARRANGE_V2_ENV", "SEARCH_V2_LIMIT", "suite_encoder", "suite_episodes", "FLOORS_FILE",
            "calibrated_bounds", "suite_over"]
 
 FLOORS_FILE = Path(__file__).resolve().parents[1] / "data" / "floors" / "floors.json"
@@ -115,6 +115,15 @@ class Suite:
     (``embedded`` for the v1 world, ``embedded-v2`` for the object library's)."""
 
 
+REARRANGE_V2_ENV = {"width": 320, "height": 240, "scan_frames": 8}
+"""Environment of ``rearrange-v2``: 320x240 frames (the size the v2 tower was trained at and
+``query-open`` scans at) and an 8-frame orbit scan. Chosen on development episodes
+(:mod:`harness.runner.develop`, ``map-pusher``, ``embedded-v2``): on the open-world validation
+tables 51 of 80 against 41 at 160x120 (13 gained, 3 lost), with ``oracle-open`` 73 against 74;
+on the calibration tables (trained instances only) 67 of 80 against 69 (2 gained, 4 lost); 12
+scan frames at 320x240 gave 47 of 80 on the validation tables. ``search-v2`` keeps 160x120: on
+its first 90 calibration episodes ``map-navigator`` found 40 at either size."""
+
 SEARCH_V2_LIMIT = 40
 """Episodes ``search-v2`` runs unless ``--limit`` says otherwise: the first 40 of its 120, ten per
 way of naming the goal (name, synonym, attribute, function, in file order), so that the default
@@ -134,7 +143,7 @@ SUITES: dict[str, Suite] = {
             "tabletop rearrangement on library tabletops (evaluation seeds): goals named by name, synonym, attribute or function",
             task="tabletop_rearrange", episodes_file=SCENES_ROOT / "tabletop-v2" / "episodes-v2.jsonl",
             agents=("map-pusher", "frame-pusher", "random-pusher"),
-            env_kwargs={"width": 160, "height": 120, "scan_frames": 8}, default_encoder="embedded-v2",
+            env_kwargs=dict(REARRANGE_V2_ENV), default_encoder="embedded-v2",
         ),
         Suite(
             "search", "episodes", "object search in apartments: stop within 1 m of the described object",
