@@ -1,18 +1,22 @@
-"""Validation data of the v2 agents (``scenes/validation-v2/``): open-world rearrangement episodes
-to develop agent settings on, never to report.
+"""Validation data of the v2 agents (``scenes/validation-v2/``): open-world rearrangement and
+search episodes to develop agent settings on, never to report.
 
 The calibration episodes (:mod:`scenes.make_calibration_v2`) hold TRAIN instances only, so an
 agent setting chosen there is chosen on objects the tower was trained on; the evaluation episodes
 also name held-out instances and held-out categories. These episodes fill that gap without
-touching the test split: their tables are drawn on ``tower_val`` seeds (TRAIN and VAL instances;
-from index :data:`TABLE_SEED_OFFSET` on, past the tower's own validation arrangements) and every
-target is a VAL instance (:func:`~sim_envs.scenes.splits.object_group` ``"validation"``: a
-held-out instance of a trained category or an instance of a validation category), named by name,
-synonym, attribute or function as the shipped ``rearrange-v2`` goals, pushes checked against the
-PyBullet Panda's reach.
+touching the test split: their tables and apartments are drawn on ``tower_val`` seeds (TRAIN and
+VAL instances; tables from index :data:`TABLE_SEED_OFFSET` on, apartments from
+:data:`APARTMENT_SEED_OFFSET`, past the tower's own validation arrangements) and every target or
+goal is a VAL instance (:func:`~sim_envs.scenes.splits.object_group` ``"validation"``: a held-out
+instance of a trained category or an instance of a validation category), named by name, synonym,
+attribute or function as the shipped ``rearrange-v2`` and ``search-v2`` goals; pushes are checked
+against the PyBullet Panda's reach.
 
 - ``validation-v2/tabletop-v2-<seed>.json``: the tables;
-- ``validation-v2/rearrange-episodes-v2.jsonl``: :data:`NUM_TABLE_EPISODES` episodes.
+- ``validation-v2/rearrange-episodes-v2.jsonl``: :data:`NUM_TABLE_EPISODES` episodes;
+- ``validation-v2/household-v2-<seed>.json``: :data:`NUM_APARTMENTS` apartments;
+- ``validation-v2/search-episodes-v2.jsonl``: up to 6 object-search episodes per apartment, drawn
+  as the ``search-v2`` ones among the apartment's VAL instances.
 
 No suite runs them (their seeds are not evaluation seeds; ``tests/harness/test_suite_scenes.py``).
 
@@ -22,13 +26,21 @@ No suite runs them (their seeds are not evaluation seeds; ``tests/harness/test_s
 
 from __future__ import annotations
 
+import json
 import sys
+import tempfile
+from pathlib import Path
 
 from scenes.shipped import generator_main
+from sim_envs.scenes.episodes import episodes_text
+from sim_envs.scenes.gen_household_v2 import generate_household_v2
+from sim_envs.scenes.search_episodes import generate_search_episodes
+from sim_envs.scenes.search_episodes_v2 import PER_SCENE, V2_DESCRIPTION_KINDS
 from sim_envs.scenes.splits import splits
 
-__all__ = ["FOLDER", "REARRANGE_FILE", "NUM_TABLE_EPISODES", "TABLE_SEED_OFFSET", "TABLE_SEEDS", "TABLE_GENERATOR_SEED",
-           "GOAL_GROUPS", "table_seeds", "table_files", "build_files", "main"]
+__all__ = ["FOLDER", "REARRANGE_FILE", "SEARCH_FILE", "NUM_TABLE_EPISODES", "TABLE_SEED_OFFSET", "TABLE_SEEDS",
+           "TABLE_GENERATOR_SEED", "NUM_APARTMENTS", "APARTMENT_SEED_OFFSET", "SEARCH_GENERATOR_SEED", "GOAL_GROUPS",
+           "table_seeds", "apartment_seeds", "table_files", "search_files", "build_files", "main"]
 
 FOLDER = "validation-v2"
 """Folder under ``scenes/`` of the v2 validation data."""
@@ -40,14 +52,44 @@ arrangements use the first 60)."""
 TABLE_SEEDS = 3000
 """``tower_val`` seeds the table episodes may draw from (a table with no reachable VAL target is skipped)."""
 TABLE_GENERATOR_SEED = 7104
+SEARCH_FILE = f"{FOLDER}/search-episodes-v2.jsonl"
+NUM_APARTMENTS = 15
+APARTMENT_SEED_OFFSET = 500
+"""Index of the first apartment seed among the ``tower_val`` seeds."""
+SEARCH_GENERATOR_SEED = 7105
 GOAL_GROUPS = ("validation",)
-"""Split groups a target may come from."""
+"""Split groups a target or goal may come from."""
 
 
 def table_seeds() -> list[int]:
     """Seeds the validation tables are drawn from: ``tower_val`` seeds ``TABLE_SEED_OFFSET ..``
     ``TABLE_SEED_OFFSET + TABLE_SEEDS - 1``."""
     return splits().seeds_of("tower_val", TABLE_SEED_OFFSET + TABLE_SEEDS)[TABLE_SEED_OFFSET:]
+
+
+def apartment_seeds() -> list[int]:
+    """Seeds of the validation apartments: ``tower_val`` seeds ``APARTMENT_SEED_OFFSET ..``
+    ``APARTMENT_SEED_OFFSET + NUM_APARTMENTS - 1``."""
+    return splits().seeds_of("tower_val", APARTMENT_SEED_OFFSET + NUM_APARTMENTS)[APARTMENT_SEED_OFFSET:]
+
+
+def search_files() -> dict[str, str]:
+    """Relative path under ``scenes/`` -> file text: every apartment and the search episode file."""
+    files = {}
+    with tempfile.TemporaryDirectory() as tmp:  # the episode generator reads scene files
+        root = Path(tmp)
+        (root / FOLDER).mkdir()
+        paths = []
+        for seed in apartment_seeds():
+            scene = generate_household_v2(seed)
+            rel = f"{FOLDER}/{scene.id}.json"
+            files[rel] = json.dumps(scene.to_json(), indent=1)
+            (root / rel).write_text(files[rel])
+            paths.append(root / rel)
+        eps = generate_search_episodes(paths, per_scene=PER_SCENE, generator_seed=SEARCH_GENERATOR_SEED, scenes_root=root,
+                                       description_kinds=V2_DESCRIPTION_KINDS, id_prefix="search-v2-val", goal_groups=GOAL_GROUPS)
+    files[SEARCH_FILE] = episodes_text(eps)
+    return files
 
 
 def table_files(count: int = NUM_TABLE_EPISODES) -> dict[str, str]:
@@ -60,8 +102,8 @@ def table_files(count: int = NUM_TABLE_EPISODES) -> dict[str, str]:
 
 
 def build_files() -> dict[str, str]:
-    """Relative path under ``scenes/`` -> file text: every table and the episode file."""
-    return table_files()
+    """Relative path under ``scenes/`` -> file text: every table and apartment, and both episode files."""
+    return {**table_files(), **search_files()}
 
 
 def main(argv: list[str] | None = None) -> int:

@@ -18,10 +18,12 @@ from pathlib import Path
 import numpy as np
 
 from planners.geodesic import geodesic_to_goal
+from sim_envs.assets.library import is_library_asset
 from sim_envs.scenes.descriptions import describe
 from sim_envs.scenes.episodes import SCENES_ROOT, Episode, EpisodeSet, Goal, load_episodes, save_episodes
 from sim_envs.scenes.floorplan import occupancy_grid
 from sim_envs.scenes.format import Scene, load_scene
+from sim_envs.scenes.splits import SPLIT_GROUPS, object_group
 
 __all__ = ["generate_search_episodes", "default_search_episodes", "DEFAULT_SEARCH_FILE", "room_of"]
 
@@ -47,7 +49,7 @@ def _goal_mask(occ, lo, hi, radius: float) -> np.ndarray:
 def generate_search_episodes(
     scene_files: list[Path], *, per_scene: int = 5, generator_seed: int = 0, max_steps: int = 250,
     robot_radius: float = 0.25, success_distance: float = 1.0, scenes_root: str | Path | None = None,
-    description_kinds: tuple[str, ...] | None = None, id_prefix: str = "search-v1",
+    description_kinds: tuple[str, ...] | None = None, id_prefix: str = "search-v1", goal_groups: tuple[str, ...] | None = None,
 ) -> EpisodeSet:
     """``per_scene`` episodes for each scene file (paths under ``scenes/``).
 
@@ -62,8 +64,16 @@ def generate_search_episodes(
     records it in ``description_kind`` (the episode's and its goal's, with the goal's
     ``description``); descriptions draw from their own generator (seeded
     ``generator_seed + 1``), so the goals and starts are those of version 1. Episode ids read
-    ``<id_prefix>-NNNN``.
+    ``<id_prefix>-NNNN``. ``goal_groups`` (split groups of
+    :func:`~sim_envs.scenes.splits.object_group`, e.g. ``("validation",)``) limits the goals to
+    library instances of those groups; None: any object.
+
+    Raises:
+        ValueError: a scene without rooms, or an unknown split group.
     """
+    unknown = sorted(set(goal_groups or ()) - set(SPLIT_GROUPS))
+    if unknown:
+        raise ValueError(f"goal_groups: {unknown} are not split groups; expected some of {', '.join(SPLIT_GROUPS)}")
     rng = np.random.default_rng(generator_seed)
     text_rng = np.random.default_rng(generator_seed + 1)
     episodes = []
@@ -84,6 +94,8 @@ def generate_search_episodes(
             if made >= per_scene:
                 break
             obj = scene.objects[int(oi)]
+            if goal_groups is not None and not (is_library_asset(obj.asset) and object_group(obj) in goal_groups):
+                continue
             instruction, kind = f"the {obj.name}", None
             if description_kinds:
                 k0 = len(episodes)

@@ -160,3 +160,31 @@ def test_a_goal_group_that_is_not_a_split_group_is_refused():
 
     with pytest.raises(ValueError, match="goal_groups: \\['unseen'\\] are not split groups"):
         generate_tabletop_v2_episodes(0, 1, [300000], goal_groups=("unseen",))
+
+
+def test_v2_validation_apartments_name_only_validation_goals_regenerate_and_stay_out_of_every_suite():
+    from scenes.make_validation_v2 import FOLDER, NUM_APARTMENTS, SEARCH_FILE, search_files
+    from scenes.shipped import ROOT
+    from sim_envs.assets.library import is_library_asset
+    from sim_envs.scenes.format import load_scene
+    from sim_envs.scenes.splits import object_group
+
+    files = search_files()
+    assert len(files) == 1 + NUM_APARTMENTS and all((ROOT / rel).read_text() == text for rel, text in files.items())
+    eps = load_episodes(ROOT / SEARCH_FILE).episodes
+    assert len(eps) >= 5 * NUM_APARTMENTS and {splits().seed_role(e.scene_seed) for e in eps} == {"tower_val"}
+    for e in eps:
+        objects = {o.id: o for o in load_scene(ROOT / e.scene).objects}
+        assert object_group(objects[e.goals[0].object_id]) == "validation", e.episode_id
+        assert {object_group(o) for o in objects.values() if is_library_asset(o.asset)} <= {"seen", "validation"}, e.episode_id
+    apartments = {Path(rel).stem for rel in files if rel.endswith(".json")}
+    assert all(e.scene.startswith(f"{FOLDER}/") for e in eps)
+    for name in SUITES:
+        assert not {sid for sid, _ in _suite_scenes(name)} & apartments, name
+
+
+def test_a_search_goal_group_that_is_not_a_split_group_is_refused():
+    from sim_envs.scenes.search_episodes import generate_search_episodes
+
+    with pytest.raises(ValueError, match="goal_groups: \\['test'\\] are not split groups"):
+        generate_search_episodes([], goal_groups=("test",))
