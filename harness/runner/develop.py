@@ -5,9 +5,10 @@ evaluation suite runs (:data:`DEVELOPMENT_EPISODES`):
 
 - ``calibration``: drawn like the suite's own on ``calibration`` seeds, targets TRAIN instances
   (``scenes/calibration-v2/``, for ``search-v2`` and ``rearrange-v2``);
-- ``validation``: tables on ``tower_val`` seeds whose every target is a VAL instance, a held-out
-  instance of a trained category or a validation category (``scenes/validation-v2/``, for
-  ``rearrange-v2``): the open-world side of the evaluation episodes without their test objects.
+- ``validation``: tables and apartments on ``tower_val`` seeds whose every target or goal is a
+  VAL instance, a held-out instance of a trained category or a validation category
+  (``scenes/validation-v2/``, for both): the open-world side of the evaluation episodes without
+  their test objects.
 
 This runs a suite's agents over one set with the suite's environment settings and default
 perception, appending one record per episode to ``OUT/results.jsonl`` (an interrupted run resumes
@@ -46,7 +47,8 @@ from harness.runner.suites import SCENES_ROOT, Suite, get_suite, suite_over
 __all__ = ["DEVELOPMENT_EPISODES", "SET_SUFFIX", "development_suite", "develop", "parse_env_options", "main"]
 
 DEVELOPMENT_EPISODES: dict[str, dict[str, str]] = {
-    "search-v2": {"calibration": "calibration-v2/search-episodes-v2.jsonl"},
+    "search-v2": {"calibration": "calibration-v2/search-episodes-v2.jsonl",
+                  "validation": "validation-v2/search-episodes-v2.jsonl"},
     "rearrange-v2": {"calibration": "calibration-v2/rearrange-episodes-v2.jsonl",
                      "validation": "validation-v2/rearrange-episodes-v2.jsonl"},
 }
@@ -142,7 +144,7 @@ def main(argv: list[str] | None = None) -> int:
     parser.add_argument("--agent-option", action="append", metavar="KEY=VALUE", help="agent option, repeatable")
     parser.add_argument("--encoder", default=None, help="perception (default: the suite's)")
     parser.add_argument("--episodes", default="calibration", choices=tuple(SET_SUFFIX),
-                        help="development set: calibration (trained instances) or validation (VAL instances; rearrange-v2)")
+                        help="development set: calibration (trained instances) or validation (VAL instances)")
     parser.add_argument("--env-option", action="append", metavar="KEY=VALUE",
                         help="environment setting over the suite's (e.g. width=320), repeatable")
     parser.add_argument("--limit", type=int, default=None, help="first N episodes")

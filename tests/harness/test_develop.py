@@ -26,8 +26,8 @@ def test_development_episodes_are_calibration_or_validation_seeds_and_no_suite_r
 def test_unknown_development_suite_is_refused_naming_the_known_ones():
     with pytest.raises(HarnessError, match="search-v2"):
         development_suite("rearrange")  # v1: none
-    with pytest.raises(HarnessError, match="--episodes: expected one of calibration for search-v2, got 'validation'"):
-        development_suite("search-v2", episodes="validation")
+    with pytest.raises(HarnessError, match="--episodes: expected one of calibration, validation for search-v2, got 'test'"):
+        development_suite("search-v2", episodes="test")
 
 
 def test_develop_runs_resumes_and_summarises(tmp_path, capsys):
