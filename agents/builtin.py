@@ -62,11 +62,11 @@ def make_mapper(
 
 
 def _map_pusher(encoder: str = "embedded", proposer: str = "rgbd", scan: bool = True, assume_present: bool = True,
-                name_only_fallback: bool = True):
+                name_only_fallback: bool = True, track_pushed: float = 0.0):
     from agents.pusher import MapPusher, PusherConfig
 
-    return MapPusher(make_mapper(encoder, proposer), PusherConfig(assume_present=assume_present, name_only_fallback=name_only_fallback),
-                     use_scan=scan)
+    return MapPusher(make_mapper(encoder, proposer), PusherConfig(assume_present=assume_present, name_only_fallback=name_only_fallback,
+                                                                  track_pushed=track_pushed), use_scan=scan)
 
 
 def _frame_pusher(encoder: str = "embedded", proposer: str = "rgbd", assume_present: bool = True, name_only_fallback: bool = True):
@@ -114,7 +114,7 @@ _PRESENCE = {"assume_present": Option(bool, True), "name_only_fallback": Option(
 register_agent(AgentSpec(
     "map-pusher", _map_pusher, "tabletop_rearrange",
     "ConceptFusion map from an orbit scan; pushes each named object's median across the line; re-checks and retries",
-    {**_PERCEPTION, "scan": Option(bool, True), **_PRESENCE}, uses_map=True,
+    {**_PERCEPTION, "scan": Option(bool, True), **_PRESENCE, "track_pushed": Option.at_least(float, 0.0, 0.0)}, uses_map=True,
 ))
 register_agent(AgentSpec(
     "frame-pusher", _frame_pusher, "tabletop_rearrange",
