@@ -196,13 +196,13 @@ class MapNavigator:
         self._rechecking = False
         """A faded sighting is being checked by a look-around (``recheck_faded``)."""
         self._rejected: list[np.ndarray] = []
+        """World (x, y) centres of sightings a close look did not confirm."""
         self._presumed: str | None = None
         """How the goal was last presumed present (``presume_after``), None before."""
         self._exhausted = False
         """No frontier was left (``presume_after``: the goal is presumed present from then on)."""
-        self._presumes = bool(self.config.presume_after) and not getattr(self.mapper, "privileged", False)
+        self._presumes = bool(self.config.presume_after) and not self.privileged
         """Whether this search may presume its goal present (``presume_after``, perceived maps only)."""
-        """World (x, y) centres of sightings a close look did not confirm."""
         self._close_keys = np.zeros(0, np.int64)
         """Space seen within ``explore_range``: world (x, y) on a lattice of half the grid's
         cell side, as ``ix * 2**32 + iy`` keys, sorted and unique."""

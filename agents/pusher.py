@@ -30,9 +30,12 @@ import numpy as np
 from agents.concept_map import ConceptMapper, privileged_labels
 from planners.push import plan_push
 
-__all__ = ["PusherConfig", "MapPusher", "parse_push_instruction", "push_action", "scan_frames"]
+__all__ = ["MAX_PUSH", "PusherConfig", "MapPusher", "parse_push_instruction", "push_action", "scan_frames"]
 
 _LOG = logging.getLogger(__name__)
+
+MAX_PUSH = 0.5
+"""Longest finger travel (m) of one push action."""
 
 _TARGETS = re.compile(
     r"\s*(?:the\s+)?(?P<name>.+?)\s+to\s+the\s+(?P<side>left|right)(?:\s+side)?(?:\s+of\s+the\s+(?:yellow\s+)?line)?(?:\s+and\s+|$)"
@@ -242,10 +245,12 @@ class MapPusher:
                     continue  # the finger must come down on the table and the object stay on it
                 if len(others) and np.min(np.linalg.norm(others - start, axis=1)) < c.finger_radius + 0.01:
                     continue  # the finger would come down on another object
+                # where the object should end up: the finger's travel past the approach gap
+                push = (start, ang, dist, centre[:2] + (min(dist, MAX_PUSH) - c.approach_clearance) * d)
                 if fallback is None:
-                    fallback = (start, ang, dist, centre[:2] + (min(dist, 0.5) - c.approach_clearance) * d)
+                    fallback = push
                 if self._corridor_clear(start, ang, dist + 2 * back, extent + c.corridor_half_width, others):
-                    choice = (start, ang, dist, centre[:2] + (min(dist, 0.5) - c.approach_clearance) * d)
+                    choice = push
                     break
             if choice is not None:
                 return self._push(name, side, choice)
@@ -264,4 +269,4 @@ class MapPusher:
         self._attempts[name] = self._attempts.get(name, 0) + 1
         self._expected[name] = np.asarray(expected, np.float64)
         self.log.append(f"push '{name}' to the {side}: start {np.round(start, 3).tolist()}, dir {math.degrees(ang):.0f} deg, {dist:.2f} m")
-        return push_action(start, ang, min(dist, 0.5))
+        return push_action(start, ang, min(dist, MAX_PUSH))

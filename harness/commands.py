@@ -14,16 +14,16 @@ from pathlib import Path
 __all__ = ["add_eval_commands", "fail_fast_stop", "parse_agent_options"]
 
 
-def parse_agent_options(items: list[str] | None) -> dict:
-    """``--agent-option KEY=VALUE`` items as a dict of strings; a malformed item or a key given
-    twice with different values is a ``ValueError`` naming it."""
+def parse_agent_options(items: list[str] | None, flag: str = "--agent-option") -> dict:
+    """``--agent-option KEY=VALUE`` items (or those of another ``flag``) as a dict of strings; a
+    malformed item or a key given twice with different values is a ``ValueError`` naming it."""
     out = {}
     for item in items or []:
         key, sep, value = item.partition("=")
         if not sep or not key.strip():
-            raise ValueError(f"--agent-option: expected KEY=VALUE, got {item!r}")
+            raise ValueError(f"{flag}: expected KEY=VALUE, got {item!r}")
         if key.strip() in out and out[key.strip()] != value.strip():
-            raise ValueError(f"--agent-option {key.strip()}: given twice, {out[key.strip()]!r} and {value.strip()!r}")
+            raise ValueError(f"{flag} {key.strip()}: given twice, {out[key.strip()]!r} and {value.strip()!r}")
         out[key.strip()] = value.strip()
     return out
 

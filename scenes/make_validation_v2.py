@@ -26,16 +26,10 @@ No suite runs them (their seeds are not evaluation seeds; ``tests/harness/test_s
 
 from __future__ import annotations
 
-import json
 import sys
-import tempfile
-from pathlib import Path
 
 from scenes.shipped import generator_main
-from sim_envs.scenes.episodes import episodes_text
-from sim_envs.scenes.gen_household_v2 import generate_household_v2
-from sim_envs.scenes.search_episodes import generate_search_episodes
-from sim_envs.scenes.search_episodes_v2 import PER_SCENE, V2_DESCRIPTION_KINDS
+from sim_envs.scenes.search_episodes_v2 import search_episode_files
 from sim_envs.scenes.splits import splits
 
 __all__ = ["FOLDER", "REARRANGE_FILE", "SEARCH_FILE", "NUM_TABLE_EPISODES", "TABLE_SEED_OFFSET", "TABLE_SEEDS",
@@ -75,21 +69,8 @@ def apartment_seeds() -> list[int]:
 
 def search_files() -> dict[str, str]:
     """Relative path under ``scenes/`` -> file text: every apartment and the search episode file."""
-    files = {}
-    with tempfile.TemporaryDirectory() as tmp:  # the episode generator reads scene files
-        root = Path(tmp)
-        (root / FOLDER).mkdir()
-        paths = []
-        for seed in apartment_seeds():
-            scene = generate_household_v2(seed)
-            rel = f"{FOLDER}/{scene.id}.json"
-            files[rel] = json.dumps(scene.to_json(), indent=1)
-            (root / rel).write_text(files[rel])
-            paths.append(root / rel)
-        eps = generate_search_episodes(paths, per_scene=PER_SCENE, generator_seed=SEARCH_GENERATOR_SEED, scenes_root=root,
-                                       description_kinds=V2_DESCRIPTION_KINDS, id_prefix="search-v2-val", goal_groups=GOAL_GROUPS)
-    files[SEARCH_FILE] = episodes_text(eps)
-    return files
+    return search_episode_files(apartment_seeds(), folder=FOLDER, episode_file=SEARCH_FILE, generator_seed=SEARCH_GENERATOR_SEED,
+                                id_prefix="search-v2-val", goal_groups=GOAL_GROUPS)
 
 
 def table_files(count: int = NUM_TABLE_EPISODES) -> dict[str, str]:

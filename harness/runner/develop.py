@@ -98,16 +98,16 @@ def _env_keywords(task: str) -> set[str]:
 
 def parse_env_options(items: list[str] | None) -> dict:
     """``--env-option KEY=VALUE`` items as a dict; each value is read as JSON (``320``, ``true``,
-    ``0.5``) and kept as a string when it is not JSON. A malformed item is a ``ValueError``."""
+    ``0.5``) and kept as a string when it is not JSON. A malformed item, or a key given twice with
+    different values, is a ``ValueError``."""
+    from harness.commands import parse_agent_options
+
     out = {}
-    for item in items or []:
-        key, sep, value = item.partition("=")
-        if not sep or not key.strip():
-            raise ValueError(f"--env-option: expected KEY=VALUE, got {item!r}")
+    for key, value in parse_agent_options(items, flag="--env-option").items():
         try:
-            out[key.strip()] = json.loads(value)
+            out[key] = json.loads(value)
         except json.JSONDecodeError:
-            out[key.strip()] = value.strip()
+            out[key] = value
     return out
 
 

@@ -14,6 +14,9 @@ from __future__ import annotations
 import argparse
 import json
 import sys
+import tempfile
+from pathlib import Path
+from typing import Sequence
 
 from conceptfusion.io_utils import atomic_write_text
 from sim_envs.scenes.episodes import SCENES_ROOT, EpisodeSet, episodes_text, load_episodes, save_episodes
@@ -22,7 +25,7 @@ from sim_envs.scenes.search_episodes import generate_search_episodes
 from sim_envs.scenes.splits import splits
 
 __all__ = ["V2_DIR", "V2_SEARCH_FILE", "NUM_APARTMENTS", "PER_SCENE", "V2_DESCRIPTION_KINDS", "apartment_seeds",
-           "v2_search_episodes", "main"]
+           "v2_search_episodes", "search_episode_files", "main"]
 
 V2_DIR = SCENES_ROOT / "household-v2"
 """Folder of the shipped v2 apartments and episodes."""
@@ -43,6 +46,28 @@ def apartment_seeds() -> list[int]:
 def v2_search_episodes() -> EpisodeSet:
     """The shipped v2 object-search episodes (``scenes/household-v2/episodes-v2.jsonl``)."""
     return load_episodes(V2_SEARCH_FILE)
+
+
+def search_episode_files(seeds: Sequence[int], *, folder: str, episode_file: str, generator_seed: int, id_prefix: str,
+                         goal_groups: tuple[str, ...] | None = None) -> dict[str, str]:
+    """Relative path under ``scenes/`` -> file text: an apartment per seed
+    (``<folder>/<scene id>.json``) and :data:`PER_SCENE` search episodes per apartment drawn as the
+    shipped v2 ones (``episode_file``; goals from ``goal_groups`` only when given)."""
+    files = {}
+    with tempfile.TemporaryDirectory() as tmp:  # the episode generator reads scene files
+        root = Path(tmp)
+        (root / folder).mkdir()
+        paths = []
+        for seed in seeds:
+            scene = generate_household_v2(seed)
+            rel = f"{folder}/{scene.id}.json"
+            files[rel] = json.dumps(scene.to_json(), indent=1)
+            (root / rel).write_text(files[rel])
+            paths.append(root / rel)
+        eps = generate_search_episodes(paths, per_scene=PER_SCENE, generator_seed=generator_seed, scenes_root=root,
+                                       description_kinds=V2_DESCRIPTION_KINDS, id_prefix=id_prefix, goal_groups=goal_groups)
+    files[episode_file] = episodes_text(eps)
+    return files
 
 
 def _expected() -> dict:
