@@ -62,18 +62,19 @@ def make_mapper(
 
 
 def _map_pusher(encoder: str = "embedded", proposer: str = "rgbd", scan: bool = True, assume_present: bool = True,
-                name_only_fallback: bool = True, track_pushed: float = 0.0):
+                name_only_fallback: bool = True, identify: bool = True, track_pushed: float = 0.0):
     from agents.pusher import MapPusher, PusherConfig
 
     return MapPusher(make_mapper(encoder, proposer), PusherConfig(assume_present=assume_present, name_only_fallback=name_only_fallback,
-                                                                  track_pushed=track_pushed), use_scan=scan)
+                                                                  identify=identify, track_pushed=track_pushed), use_scan=scan)
 
 
-def _frame_pusher(encoder: str = "embedded", proposer: str = "rgbd", assume_present: bool = True, name_only_fallback: bool = True):
+def _frame_pusher(encoder: str = "embedded", proposer: str = "rgbd", assume_present: bool = True, name_only_fallback: bool = True,
+                  identify: bool = True):
     from agents.pusher import MapPusher, PusherConfig
 
     return MapPusher(make_mapper(encoder, proposer, persistent=False),
-                     PusherConfig(assume_present=assume_present, name_only_fallback=name_only_fallback), use_scan=False)
+                     PusherConfig(assume_present=assume_present, name_only_fallback=name_only_fallback, identify=identify), use_scan=False)
 
 
 def _map_navigator(encoder: str = "embedded", proposer: str = "rgbd", seed: int = 0, integrate_every: int = 1,
@@ -108,7 +109,7 @@ _PERCEPTION = {
     "proposer": Option(str, "rgbd", _known_proposer, "a mask proposer name"),
 }
 _SEED = Option.at_least(int, 0, 0)
-_PRESENCE = {"assume_present": Option(bool, True), "name_only_fallback": Option(bool, True)}
+_PRESENCE = {"assume_present": Option(bool, True), "name_only_fallback": Option(bool, True), "identify": Option(bool, True)}
 """The pushers' options for objects their instruction names (:class:`~agents.pusher.PusherConfig`)."""
 
 register_agent(AgentSpec(

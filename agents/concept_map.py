@@ -29,8 +29,8 @@ import numpy as np
 
 from conceptfusion.frames import RGBDFrame
 from conceptfusion.map.fusion import PointFusionMap
-from conceptfusion.map.query import NEGATIVE_PHRASES, QueryResult, locate
-from conceptfusion.map.regions import SupportTest
+from conceptfusion.map.query import NEGATIVE_PHRASES, QueryResult, locate, relative_scores, relevancy, vocabulary_margins
+from conceptfusion.map.regions import Region, SupportTest
 from conceptfusion.perception.featurizer import FrameFeaturizer
 
 __all__ = ["ConceptMapper", "MapperConfig", "frame_from_observation", "privileged_labels"]
@@ -123,6 +123,7 @@ class ConceptMapper:
         self.featurizer, self.config = featurizer, config
         self._text_cache: dict[str, np.ndarray] = {}
         self._negatives = None
+        self._vocabulary_kd = None
         self.map = PointFusionMap(featurizer.dim, max_depth=config.max_depth)
         self.frames = 0
         self._answers: dict[str, QueryResult] = {}
@@ -149,6 +150,7 @@ class ConceptMapper:
         if getattr(self.featurizer, "scene_dependent_text", False):
             self._text_cache.clear()
             self._negatives = None
+            self._vocabulary_kd = None
         if object_phrases is None:
             self.featurizer.reset(object_names)
         else:
@@ -173,6 +175,46 @@ class ConceptMapper:
         if self._negatives is None:
             self._negatives = np.asarray(self.featurizer.encode_text(list(NEGATIVE_PHRASES)), np.float32)
         return self._negatives
+
+    @property
+    def vocabulary(self) -> tuple[str, ...]:
+        """The names the featurizer's image side was trained to tell apart (its ``vocabulary``;
+        empty for the oracles and for encoders that record none)."""
+        return tuple(getattr(self.featurizer, "vocabulary", ()) or ())
+
+    def identify(self, text: str, candidates: Sequence[Region]) -> QueryResult:
+        """Which of ``candidates`` ``text`` names, for a caller that knows it is one of them
+        (an instruction names an object on the table, and the candidates are the table's objects):
+        the candidates ordered by :func:`~conceptfusion.map.query.vocabulary_margins` against
+        the featurizer's :attr:`vocabulary`, best first, each region's ``scores_n`` its points'
+        scores for ``text``. ``found`` is False only when there is no candidate. ``extras``:
+        ``identified`` (``"vocabulary"``) and ``margins``, best first. ``relevancy_n`` is against
+        the generic phrases, as :meth:`locate` gives it.
+
+        Shape:
+            candidates: regions of this map (with ``indices_n``).
+
+        Raises:
+            ValueError: the featurizer has no vocabulary (see :attr:`vocabulary`), or a
+                candidate has no point indices of this map.
+        """
+        if not self.vocabulary:
+            raise ValueError(f"identify: the featurizer ({type(self.featurizer).__name__}) records no vocabulary "
+                             "of trained names; use locate or locate_present")
+        if self._vocabulary_kd is None:
+            self._vocabulary_kd = np.asarray(self.featurizer.encode_text(list(self.vocabulary)), np.float32)
+        q = self.text_vector(text)
+        both = self.map.scores_many(np.concatenate([q[None], self.negatives()]))
+        scores, relev = both[0], relevancy(both[0], both[1:])
+        margins = vocabulary_margins(self.map, q, self._vocabulary_kd, candidates)
+        order = np.argsort(-margins, kind="stable")
+        regions = [Region(points_n3=candidates[i].points_n3, scores_n=scores[candidates[i].indices_n],
+                          indices_n=candidates[i].indices_n) for i in order]
+        res = QueryResult(bool(regions), regions, scores, relative_scores(scores), relev,
+                          "" if regions else "no candidate objects to choose from",
+                          {"identified": "vocabulary", "margins": [float(margins[i]) for i in order]})
+        self._answers[text] = res
+        return res
 
     def integrate(self, observation: Mapping | RGBDFrame, *, segmentation: np.ndarray | None = None) -> None:
         """Fuse one posed RGB-D frame.

@@ -11,6 +11,10 @@ decision, and 3D regions.
   to every generic phrase; an absent object leaves no such region, so the answer can be
   "not in this map".
 * :func:`locate` combines both and clusters the selected points into :class:`Region` s.
+* :func:`vocabulary_margins` answers a different question, "which of these objects is it?",
+  for a caller that knows the object is among given candidates (the things on a table): each
+  candidate's points score the query against every name the encoder was trained to tell apart,
+  so an object the encoder sees as something else it knows loses to one it cannot name.
 """
 
 from __future__ import annotations
@@ -31,6 +35,7 @@ __all__ = [
     "relevancy",
     "connected_regions",
     "locate",
+    "vocabulary_margins",
     "click_query_vector",
 ]
 
@@ -221,6 +226,52 @@ def locate(
             + (f" ({dropped} lay on the surface under them)" if dropped else "")
         )
     return QueryResult(bool(regions), regions, scores, rel, relev, reason)
+
+
+def vocabulary_margins(map_, query_d: np.ndarray, vocabulary_kd: np.ndarray, candidates: Sequence[Region]) -> np.ndarray:
+    """How much each candidate region looks like the query rather than like any name of a
+    vocabulary: the median over the region's points (those with a concept vector) of
+    ``cos(f, query) - max_k cos(f, vocabulary_k)``.
+
+    An object whose concept vectors resemble a known name more than the query (a mug, for "the
+    stapler") scores below 0; the object the query names scores near 0 when the query is a
+    vocabulary name and highest among the candidates when the encoder never learned its look
+    (it resembles no known name well). Zero-shot classification over the candidates, with the
+    query added to the classes.
+
+    Args:
+        map_: a :class:`~conceptfusion.map.fusion.PointFusionMap`.
+        query_d: the query's embedding.
+        vocabulary_kd: embeddings of the vocabulary's names (at least one).
+        candidates: regions of ``map_`` with their point indices (``indices_n``).
+
+    Shape:
+        ``query_d`` (d,), ``vocabulary_kd`` (K, d) -> (R,) float64; ``-inf`` for a candidate
+        with no point that has a concept vector.
+
+    Raises:
+        ShapeError: wrong shapes, or an empty vocabulary.
+        ValueError: a candidate without point indices, or indices outside the map.
+    """
+    q = map_.check_query(query_d).astype(np.float32)
+    voc = as_float_array("vocabulary_kd", np.asarray(vocabulary_kd), shape=(None, map_.feature_dim)).astype(np.float32)
+    if len(voc) == 0:
+        raise ShapeError("vocabulary_kd: expected at least one name's embedding, got 0")
+    q = q / max(float(np.linalg.norm(q)), 1e-12)
+    voc = voc / np.maximum(np.linalg.norm(voc, axis=1, keepdims=True), 1e-12)
+    has = map_.has_feature
+    out = np.full(len(candidates), -np.inf)
+    for i, reg in enumerate(candidates):
+        idx = np.asarray(reg.indices_n, np.int64).reshape(-1)
+        if idx.size == 0:
+            raise ValueError(f"candidates[{i}]: expected a region of the map with point indices (indices_n), got none")
+        if idx.min() < 0 or idx.max() >= len(has):
+            raise ValueError(f"candidates[{i}]: point indices outside the map's {len(has)} points")
+        idx = idx[has[idx]]
+        if idx.size:
+            f = map_.features(idx)
+            out[i] = float(np.median(f @ q - (f @ voc.T).max(axis=1)))
+    return out
 
 
 def _without_support(points_n3, normals_n3, regions: list[Region], test: SupportTest, min_points: int) -> tuple[list[Region], int]:

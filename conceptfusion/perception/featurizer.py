@@ -58,6 +58,7 @@ __all__ = [
     "perception_names",
     "FLOOR_SETTINGS",
     "score_floor_for",
+    "encoder_vocabulary",
 ]
 
 ORACLE = "oracle"
@@ -171,7 +172,11 @@ class FrameFeaturizer(Protocol):
     built on them must say so."""
     score_floor: float | None
     """The smallest median cosine score of a region that counts as found for a text query
-    (calibrated per encoder; None: no floor)."""
+    (calibrated per encoder; None: no floor).
+
+    A featurizer may also say which names its image side was trained to tell apart
+    (``vocabulary``, a tuple of str; see :func:`encoder_vocabulary`); callers read it with
+    ``getattr(featurizer, "vocabulary", ())``."""
 
     @property
     def dim(self) -> int:
@@ -213,6 +218,24 @@ def _score_floor(encoder, setting: str = "tabletop") -> float | None:
     if setting == "household" and metrics.get("score_floor_household") is not None:
         return metrics["score_floor_household"]
     return metrics.get("score_floor")
+
+
+def encoder_vocabulary(encoder) -> tuple[str, ...]:
+    """The names an encoder's image side was trained to tell apart, sorted: the train categories
+    its metadata records (``info["splits"]["categories"]["train"]``, written by
+    :mod:`tower_training.train_v2`); empty when it records none (the v1 tower, CLIP and other
+    open encoders, text-only encoders).
+
+    Raises:
+        ValueError: the metadata holds a train list that is not a list of non-empty names.
+    """
+    info = getattr(encoder, "info", None)
+    names = (((info or {}).get("splits") or {}).get("categories") or {}).get("train") if isinstance(info, dict) else None
+    if names is None:
+        return ()
+    if not isinstance(names, (list, tuple)) or not all(isinstance(n, str) and n.strip() for n in names):
+        raise ValueError(f"encoder metadata: splits.categories.train: expected a list of non-empty names, got {names!r:.200}")
+    return tuple(sorted(set(names)))
 
 
 def score_floor_for(featurizer, setting: str = "tabletop") -> float | None:
@@ -270,6 +293,8 @@ class PerceivedFeaturizer(_EncoderBacked):
         self.score_floors = {k: _score_floor(encoder, k) if score_floor is ... else score_floor for k in FLOOR_SETTINGS}
         self.score_floor = self.score_floors["tabletop"]
         self.privileged = bool(getattr(proposer, "privileged", False))
+        self.vocabulary = encoder_vocabulary(encoder)
+        """Names the encoder's image side was trained on (:func:`encoder_vocabulary`)."""
 
     def reset(self, label_names: Mapping[int, str] | None = None,
               label_phrases: Mapping[int, Iterable[str]] | None = None) -> None:
@@ -299,6 +324,8 @@ class OracleFeaturizer(_EncoderBacked):
     """
 
     privileged = True
+    vocabulary: tuple[str, ...] = ()
+    """No learned image side: nothing to contrast a name with."""
 
     def __init__(self, text_encoder, *, score_floor: float | None = ORACLE_MIN_SCORE) -> None:
         self._encoder = text_encoder
@@ -357,6 +384,8 @@ class GroundedOracleFeaturizer:
     """
 
     privileged = True
+    vocabulary: tuple[str, ...] = ()
+    """No learned image side: nothing to contrast a name with."""
     scene_dependent_text = True
     """Text embeddings are the current scene's (a mapper clears its text cache on reset)."""
 

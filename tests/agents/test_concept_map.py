@@ -125,3 +125,40 @@ def test_locate_without_contrast_finds_a_name_that_loses_to_the_generic_phrases(
     assert not refused.found and mapper.answers[name] is refused and "floor" not in refused.reason
     with pytest.raises(ValueError, match="contrast=False needs floor=False"):
         mapper.locate(name, contrast=False)
+
+
+def test_identify_orders_the_candidates_against_the_vocabulary(scan):
+    """``identify`` ranks candidate objects by how much more they look like the name than like
+    any vocabulary name; a featurizer without a vocabulary refuses, as does none at all."""
+    from conceptfusion.map.query import connected_regions
+
+    featurizer = OracleFeaturizer(ColorNameEncoder())
+    mapper = ConceptMapper(featurizer)
+    info0 = scan[0][1]
+    mapper.reset(dict(enumerate(info0["object_names"])))
+    for obs, info in scan:
+        mapper.integrate(obs, segmentation=info["segmentation"])
+    pts = mapper.map.points
+    objects = {o["name"]: np.asarray(o["aabb"]) for o in info0["scene_graph"]["objects"]}
+    candidates = [connected_regions(pts, np.all((pts >= box[0] - 0.005) & (pts <= box[1] + 0.005), axis=1),
+                                    np.zeros(len(pts), np.float32), min_points=5)[0] for box in objects.values()]
+    with pytest.raises(ValueError, match="no vocabulary"):
+        mapper.identify("red", candidates)
+    i, name = _unique_colour_objects(info0)[0]
+    featurizer.vocabulary = tuple(n for n in objects if n != name)  # every other object is a known name
+    res = mapper.identify(name, candidates)
+    assert res.found and res.extras["identified"] == "vocabulary" and len(res.regions) == len(candidates)
+    assert res.extras["margins"] == sorted(res.extras["margins"], reverse=True)
+    box = objects[name]
+    assert np.all((res.best.median >= box[0] - 0.01) & (res.best.median <= box[1] + 0.01))
+    assert np.allclose(res.best.scores_n, mapper.map.scores(mapper.text_vector(name))[res.best.indices_n], equal_nan=True)
+    assert mapper.answers[name] is res
+    empty = mapper.identify(name, [])
+    assert not empty.found and empty.reason
+
+
+def test_a_perceived_featurizer_takes_its_encoders_vocabulary():
+    enc = ColorNameEncoder()
+    assert PerceivedFeaturizer(enc, make_proposer("rgbd")).vocabulary == ()
+    enc.info = {"splits": {"categories": {"train": ["mug", "bowl", "mug"]}}}
+    assert ConceptMapper(PerceivedFeaturizer(enc, make_proposer("rgbd"))).vocabulary == ("bowl", "mug")

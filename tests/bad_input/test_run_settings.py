@@ -77,7 +77,7 @@ def test_a_bad_setting_is_refused_naming_it(kwargs, match):
     ({"scan": "maybe"}, r"^--agent-option scan=maybe: agent 'map-pusher' option 'scan': expected a boolean"),
     ({"proposer": "rgdb"}, r"^--agent-option proposer=rgdb: agent 'map-pusher' option 'proposer': unknown mask proposer 'rgdb'; "
                            r"did you mean 'rgbd'\?"),
-    ({"bogus": "1"}, r"^--agent-option bogus: no agent or suite of this run takes it \(options of this run: assume_present, "
+    ({"bogus": "1"}, r"^--agent-option bogus: no agent or suite of this run takes it \(options of this run: assume_present, identify, "
                      r"max_pushes, name_only_fallback, proposer, scan, seed, track_pushed\)$"),
     ({"max_pushe": "3"}, r"^--agent-option max_pushe: no agent or suite of this run takes it; did you mean 'max_pushes', 'track_pushed'\?"),
     ({"encoder": "oracle"}, r"^--agent-option encoder=oracle: the encoder is a run setting; give it with --encoder$"),
