@@ -94,9 +94,10 @@ def test_a_floored_answer_is_pushed_without_identify():
     assert mapper.asked == [("locate", True, True)]
 
 
-def test_the_option_reaches_both_pushers():
+def test_the_option_reaches_both_pushers(monkeypatch):
     from agents.registry import make_agent
 
+    monkeypatch.setattr("agents.builtin.make_mapper", lambda *a, **k: _Table())  # no encoder to load
     for name in ("map-pusher", "frame-pusher"):
         assert make_agent(name, encoder="oracle").config.identify
         assert not make_agent(name, encoder="oracle", identify=False).config.identify
