@@ -216,19 +216,20 @@ class MapPusher:
         fallbacks = []  # (name, side, push) with a blocked corridor: tried after every clear push
         objects = None  # the table's objects for identify, grouped once per step
         for name, side in self._targets:
+            res = None
             if c.assume_present and c.identify and getattr(self.mapper, "vocabulary", ()):
                 res = self.mapper.locate(name)
                 if not res.found:
                     reason = res.reason
                     if objects is None:
                         objects = self._table_objects(above)
-                    res = self.mapper.identify(name, objects)
-                    if res.found:
+                    res = self.mapper.identify(name, objects) if objects else None
+                    if res is not None:
                         margins = res.extras["margins"]
                         self.log.append(f"'{name}' under the floor ({reason}); the instruction names it: of {len(margins)} things on "
                                         f"the table, taking the one most like it against the encoder's vocabulary (margin {margins[0]:+.2f}"
                                         + (f", next {margins[1]:+.2f})" if len(margins) > 1 else ")"))
-            elif c.assume_present:
+            if res is None and c.assume_present:  # no vocabulary, or nothing on the table to choose from
                 res = self.mapper.locate_present(name, name_only=c.name_only_fallback)
                 presumed, passed = res.extras.get("presumed"), res.extras.get("passed_over", [])
                 if presumed == "under_floor":
@@ -236,7 +237,7 @@ class MapPusher:
                 elif presumed == "name_only":
                     self.log.append(f"'{name}' loses to the generic phrases ({passed[-1]}); the instruction names it: "
                                     "taking the region that scores highest for the name alone")
-            else:
+            elif res is None:
                 res = self.mapper.locate(name)
             if not res.found:
                 self.log.append(f"'{name}' not found: {res.reason}")

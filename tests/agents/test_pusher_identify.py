@@ -23,14 +23,14 @@ class _Table:
 
     privileged = False
 
-    def __init__(self, vocabulary=("bowl", "cup"), floored=False) -> None:
+    def __init__(self, vocabulary=("bowl", "cup"), floored=False, things_on_table=True) -> None:
         xs, ys = np.meshgrid(np.arange(-0.5, 0.5, 0.01), np.arange(-0.35, 0.35, 0.01), indexing="ij")
         table = np.stack([xs.ravel(), ys.ravel(), np.full(xs.size, TABLE_Z)], axis=1)
         mug, toy = _box(-0.19, 0.0), _box(-0.3, 0.2)
         pts = np.concatenate([table, mug, toy])
         self.mug = np.arange(len(table), len(table) + len(mug))
         self.toy = np.arange(self.mug[-1] + 1, len(pts))
-        self.map = type("M", (), {"points": pts, "has_feature": np.ones(len(pts), bool)})()
+        self.map = type("M", (), {"points": pts, "has_feature": np.arange(len(pts)) < (len(pts) if things_on_table else len(table))})()
         self.config = MapperConfig()
         self.vocabulary, self.floored = tuple(vocabulary), floored
         self.asked: list = []
@@ -85,6 +85,15 @@ def test_without_the_option_or_a_vocabulary_the_region_under_the_floor_is_pushed
     agent = MapPusher(mapper, PusherConfig(identify=case != "option off"), use_scan=False)
     assert abs(_start_y(agent.act(_observation()))) < 0.06, agent.log  # behind the mug
     assert ("identify",) not in mapper.asked and mapper.asked[:2] == [("locate", True, True), ("locate", False, True)]
+
+
+def test_with_nothing_on_the_table_to_choose_from_the_region_under_the_floor_is_pushed():
+    mapper = _Table(things_on_table=False)  # the objects' points have no concept vectors: no candidates
+    agent = MapPusher(mapper, PusherConfig(), use_scan=False)
+    assert abs(_start_y(agent.act(_observation()))) < 0.06, agent.log  # behind the mug, its region under the floor
+    assert ("identify",) not in mapper.asked
+    assert mapper.asked[-2:] == [("locate", True, True), ("locate", False, True)]
+    assert any("taking its best region" in line for line in agent.log), agent.log
 
 
 def test_a_floored_answer_is_pushed_without_identify():
