@@ -17,12 +17,14 @@ own. The texts are what a user would type, not the training targets:
 Its command line calibrates the tower's **score floor** (:mod:`tower_training.score_floor`):
 ``python -m tower_training.evaluate --calibrate-floor`` measures it on reserved shipped tabletop
 scenes (``--world v2``: library arrangements of calibration seeds) and writes it into the
-tower's ``tower.json`` (``metrics.score_floor``).
+tower's ``tower.json`` (``metrics.score_floor``); ``--frames`` and ``--size`` set the orbit scans
+(default 12 frames of 160x120), ``--dry-run`` only prints.
 """
 
 from __future__ import annotations
 
 import argparse
+import dataclasses
 import sys
 import time
 from typing import Callable, Sequence
@@ -30,7 +32,7 @@ from typing import Callable, Sequence
 import numpy as np
 
 from tower_training.data import BACKGROUND_CLASS, SOURCES, CropData, ObjectClass
-from tower_training.score_floor import calibrate_score_floor, calibrate_score_floor_v2, write_score_floor
+from tower_training.score_floor import FloorConfig, FloorConfigV2, calibrate_score_floor, calibrate_score_floor_v2, write_score_floor
 
 __all__ = ["top1", "evaluate_crops", "main"]
 
@@ -141,21 +143,39 @@ def _parser() -> argparse.ArgumentParser:
     p.add_argument("--dry-run", action="store_true", help="print the calibration, write nothing")
     p.add_argument("--world", choices=("v1", "v2"), default="v1",
                    help="v1: shipped tabletop scenes (default); v2: library arrangements of the calibration seeds")
+    p.add_argument("--frames", type=int, default=FloorConfig.frames, help="frames of each orbit scan (default %(default)s)")
+    p.add_argument("--size", default=f"{FloorConfig.width}x{FloorConfig.height}",
+                   help="scan image size WIDTHxHEIGHT (default %(default)s)")
     return p
 
 
+def _scan_config(parser: argparse.ArgumentParser, frames: int, size: str) -> dict:
+    """``--frames`` and ``--size`` as :class:`FloorConfig` fields (a parser error naming what arrived otherwise)."""
+    w, _, h = size.lower().partition("x")
+    if not (w.isdigit() and h.isdigit() and int(w) > 0 and int(h) > 0):
+        parser.error(f"--size: expected WIDTHxHEIGHT in pixels such as 320x240, got {size!r}")
+    if frames < 1:
+        parser.error(f"--frames: expected at least 1, got {frames}")
+    return {"frames": frames, "width": int(w), "height": int(h)}
+
+
 def main(argv: list[str] | None = None) -> int:
-    args = _parser().parse_args(argv)
+    parser = _parser()
+    args = parser.parse_args(argv)
     if not args.calibrate_floor:
-        _parser().print_help()
+        parser.print_help()
         return 2
+    scan = _scan_config(parser, args.frames, args.size)
     encoder = None
     if args.tower_dir is not None:
         from conceptfusion.perception.registry import make_encoder
 
         encoder = make_encoder(f"embedded:{args.tower_dir}")
     t0 = time.perf_counter()
-    result = calibrate_score_floor_v2(encoder=encoder) if args.world == "v2" else calibrate_score_floor(encoder=encoder)
+    if args.world == "v2":
+        result = calibrate_score_floor_v2(FloorConfigV2(scan=FloorConfig(calibration_scenes=(), validation_scenes=(), **scan)), encoder=encoder)
+    else:
+        result = calibrate_score_floor(dataclasses.replace(FloorConfig(), **scan), encoder=encoder)
     near = "parent" if args.world == "v2" else "colour"
     for split in ("calibration", "validation"):
         r = result[split]
