@@ -19,7 +19,7 @@ from pathlib import Path
 from typing import Sequence
 
 from conceptfusion.io_utils import atomic_write_text
-from sim_envs.scenes.episodes import SCENES_ROOT, EpisodeSet, episodes_text, load_episodes, save_episodes
+from sim_envs.scenes.episodes import SCENES_ROOT, EpisodeSet, episodes_text, load_episodes
 from sim_envs.scenes.gen_household_v2 import generate_household_v2
 from sim_envs.scenes.search_episodes import generate_search_episodes
 from sim_envs.scenes.splits import splits
@@ -70,41 +70,26 @@ def search_episode_files(seeds: Sequence[int], *, folder: str, episode_file: str
     return files
 
 
-def _expected() -> dict:
-    """File name -> text of everything under :data:`V2_DIR`."""
-    out = {}
-    for seed in apartment_seeds():
-        scene = generate_household_v2(seed)
-        out[f"{scene.id}.json"] = json.dumps(scene.to_json(), indent=1)
-    return out
-
-
 def main(argv: list[str] | None = None) -> int:
     p = argparse.ArgumentParser(prog="python -m sim_envs.scenes.search_episodes_v2", description=__doc__.splitlines()[0])
     p.add_argument("--check", action="store_true", help="compare with the shipped files instead of writing them")
     args = p.parse_args(argv)
-    scenes = _expected()
+    files = search_episode_files(apartment_seeds(), folder=V2_DIR.name, episode_file=f"{V2_DIR.name}/{V2_SEARCH_FILE.name}",
+                                 generator_seed=_GENERATOR_SEED, id_prefix="search-v2")
+    episodes = files[f"{V2_DIR.name}/{V2_SEARCH_FILE.name}"].count("\n") - 1  # a header line, then one per episode
+    counts = f"{len(files) - 1} apartments and {episodes} episodes"
     if args.check:
-        bad = [name for name, text in scenes.items() if not (V2_DIR / name).is_file() or (V2_DIR / name).read_text() != text]
-        extra = sorted(f.name for f in V2_DIR.glob("household-v2-*.json") if f.name not in scenes)
-        files = [V2_DIR / name for name in sorted(scenes)]
-        eps = generate_search_episodes(files, per_scene=PER_SCENE, generator_seed=_GENERATOR_SEED,
-                                       description_kinds=V2_DESCRIPTION_KINDS, id_prefix="search-v2")
-        if not V2_SEARCH_FILE.is_file() or V2_SEARCH_FILE.read_text() != episodes_text(eps):
-            bad.append(V2_SEARCH_FILE.name)
+        bad = [rel for rel, text in files.items() if not (SCENES_ROOT / rel).is_file() or (SCENES_ROOT / rel).read_text() != text]
+        extra = sorted(f"{V2_DIR.name}/{f.name}" for f in V2_DIR.glob("household-v2-*.json") if f"{V2_DIR.name}/{f.name}" not in files)
         if bad or extra:
             print(f"{V2_DIR}: differs from the generators: {', '.join(bad + extra)}")
             return 1
-        print(f"{V2_DIR}: {len(scenes)} apartments and {len(eps.episodes)} episodes match the generators")
+        print(f"{V2_DIR}: {counts} match the generators")
         return 0
     V2_DIR.mkdir(parents=True, exist_ok=True)
-    for name in sorted(scenes):
-        atomic_write_text(V2_DIR / name, scenes[name])
-    files = [V2_DIR / name for name in sorted(scenes)]
-    eps = generate_search_episodes(files, per_scene=PER_SCENE, generator_seed=_GENERATOR_SEED,
-                                   description_kinds=V2_DESCRIPTION_KINDS, id_prefix="search-v2")
-    save_episodes(eps, V2_SEARCH_FILE)
-    print(f"wrote {len(scenes)} apartments and {len(eps.episodes)} episodes to {V2_DIR}")
+    for rel in sorted(files):
+        atomic_write_text(SCENES_ROOT / rel, files[rel])
+    print(f"wrote {counts} to {V2_DIR}")
     return 0
 
 
