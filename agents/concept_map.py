@@ -247,17 +247,25 @@ class ConceptMapper:
         self._answers[text] = res
         return res
 
-    def locate_present(self, text: str, *, name_only: bool = True) -> QueryResult:
+    def locate_present(self, text: str, *, name_only: bool = True, candidates: Sequence[Region] | None = None) -> QueryResult:
         """:meth:`locate` for an object the caller knows is there (an instruction or a question
-        names it): the floored answer when it finds ``text``; else the best region without the
-        floor (it must still beat the generic phrases); else, with ``name_only``, the region that
-        scores highest for ``text`` alone (``contrast=False``); else the floored answer.
-        ``extras["presumed"]`` says which: absent for the floored answer, ``"under_floor"`` or
-        ``"name_only"``, with ``extras["passed_over"]`` the reasons of the answers passed over.
-        :attr:`answers` records the answer returned, not the last one asked on the way."""
+        names it): the floored answer when it finds ``text``; else, given ``candidates`` (the
+        things the object must be one of, such as the table's objects) and a featurizer with a
+        :attr:`vocabulary`, the candidate :meth:`identify` ranks first; else the best region
+        without the floor (it must still beat the generic phrases); else, with ``name_only``, the
+        region that scores highest for ``text`` alone (``contrast=False``); else the floored
+        answer. ``extras["presumed"]`` says which: absent for the floored answer,
+        ``"identified"``, ``"under_floor"`` or ``"name_only"``, with ``extras["passed_over"]`` the
+        reasons of the answers passed over. :attr:`answers` records the answer returned, not the
+        last one asked on the way."""
         answer = self.locate(text)
         if not answer.found:
             reasons = [answer.reason]
+            if candidates and self.vocabulary:
+                ident = self.identify(text, candidates)
+                answer = dataclasses.replace(ident, extras={**ident.extras, "presumed": "identified", "passed_over": reasons})
+                self._answers[text] = answer
+                return answer
             loose = self.locate(text, floor=False)
             bare = None
             if not loose.found:

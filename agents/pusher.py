@@ -214,30 +214,24 @@ class MapPusher:
             return bool(np.all(xy >= table_lo + inset) and np.all(xy <= table_hi - inset))
 
         fallbacks = []  # (name, side, push) with a blocked corridor: tried after every clear push
-        objects = None  # the table's objects for identify, grouped once per step
+        objects = None  # the table's objects (identify's candidates), grouped once per step when needed
         for name, side in self._targets:
-            res = None
-            if c.assume_present and c.identify and getattr(self.mapper, "vocabulary", ()):
-                res = self.mapper.locate(name)
-                if not res.found:
-                    reason = res.reason
-                    if objects is None:
-                        objects = self._table_objects(above)
-                    res = self.mapper.identify(name, objects) if objects else None
-                    if res is not None:
-                        margins = res.extras["margins"]
-                        self.log.append(f"'{name}' under the floor ({reason}); the instruction names it: of {len(margins)} things on "
-                                        f"the table, taking the one most like it against the encoder's vocabulary (margin {margins[0]:+.2f}"
-                                        + (f", next {margins[1]:+.2f})" if len(margins) > 1 else ")"))
-            if res is None and c.assume_present:  # no vocabulary, or nothing on the table to choose from
-                res = self.mapper.locate_present(name, name_only=c.name_only_fallback)
+            if c.assume_present:
+                if objects is None and c.identify and getattr(self.mapper, "vocabulary", ()):
+                    objects = self._table_objects(above)
+                res = self.mapper.locate_present(name, name_only=c.name_only_fallback, candidates=objects)
                 presumed, passed = res.extras.get("presumed"), res.extras.get("passed_over", [])
-                if presumed == "under_floor":
+                if presumed == "identified":
+                    margins = res.extras["margins"]
+                    self.log.append(f"'{name}' under the floor ({passed[0]}); the instruction names it: of {len(margins)} things on "
+                                    f"the table, taking the one most like it against the encoder's vocabulary (margin {margins[0]:+.2f}"
+                                    + (f", next {margins[1]:+.2f})" if len(margins) > 1 else ")"))
+                elif presumed == "under_floor":
                     self.log.append(f"'{name}' under the floor ({passed[0]}); the instruction names it: taking its best region")
                 elif presumed == "name_only":
                     self.log.append(f"'{name}' loses to the generic phrases ({passed[-1]}); the instruction names it: "
                                     "taking the region that scores highest for the name alone")
-            elif res is None:
+            else:
                 res = self.mapper.locate(name)
             if not res.found:
                 self.log.append(f"'{name}' not found: {res.reason}")

@@ -39,7 +39,7 @@ class _TwoAnswers:
     def integrate(self, frame, segmentation=None) -> None:
         pass
 
-    def locate_present(self, text, *, name_only=True):
+    def locate_present(self, text, *, name_only=True, candidates=None):
         empty = np.zeros(0, np.float32)
         pts = self.map.points
         regions = [Region(pts[self.decoy], np.full(len(self.decoy), 0.5, np.float32), self.decoy),
