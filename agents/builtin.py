@@ -79,14 +79,12 @@ def _frame_pusher(encoder: str = "embedded", proposer: str = "rgbd", assume_pres
 
 def _map_navigator(encoder: str = "embedded", proposer: str = "rgbd", seed: int = 0, integrate_every: int = 1,
                    keyframe_move: float = 0.3, keyframe_turn_deg: float = 40.0, goal_tolerance: float = 0.05,
-                   stuck_steps: int = 0, explore_range: float = 0.0, recheck_faded: bool = False, presume_after: int = 200,
-                   inspect_range: float = 0.0, inspect_last: bool = False):
+                   stuck_steps: int = 0, explore_range: float = 0.0, recheck_faded: bool = False, presume_after: int = 200):
     from agents.navigator import MapNavigator, NavigatorConfig
 
     config = NavigatorConfig(integrate_every=integrate_every, keyframe_move=keyframe_move, keyframe_turn_deg=keyframe_turn_deg,
                              goal_tolerance=goal_tolerance, stuck_steps=stuck_steps, explore_range=explore_range,
-                             recheck_faded=recheck_faded, presume_after=presume_after, inspect_range=inspect_range,
-                             inspect_last=inspect_last)
+                             recheck_faded=recheck_faded, presume_after=presume_after)
     return MapNavigator(make_mapper(encoder, proposer, setting="household"), config, seed=seed)
 
 
@@ -143,8 +141,7 @@ register_agent(AgentSpec(
      "keyframe_move": Option.at_least(float, 0.3, 0.0), "keyframe_turn_deg": Option.at_least(float, 40.0, 0.0),
      "goal_tolerance": Option.at_least(float, 0.05, 0.01), "stuck_steps": Option.at_least(int, 0, 0),
      "explore_range": Option.at_least(float, 0.0, 0.0), "recheck_faded": Option(bool, False),
-     "presume_after": Option.at_least(int, 200, 0), "inspect_range": Option.at_least(float, 0.0, 0.0),
-     "inspect_last": Option(bool, False)}, uses_map=True,
+     "presume_after": Option.at_least(int, 200, 0)}, uses_map=True,
 ))
 register_agent(AgentSpec(
     "frame-searcher", _frame_searcher, "object_search",

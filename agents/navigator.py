@@ -31,7 +31,6 @@ from scipy import ndimage
 from agents.concept_map import ConceptMapper, privileged_labels
 from agents.frontier import choose_frontier, find_frontiers
 from conceptfusion.cameras import world_points
-from planners.geodesic import geodesic_field
 from planners.occupancy import GridConfig, build_occupancy_grid, nearest_free_cell, reachable_goal_near
 from planners.ompl_2d import BasePlannerConfig, plan_base_path
 from planners.replan import check_path_blocked
@@ -111,18 +110,6 @@ class NavigatorConfig:
     reject_radius: float = 0.5
     """Radius (m) around a rejected sighting's centre inside which regions are ignored
     (``recheck_faded``)."""
-    inspect_range: float = 0.0
-    """Surface inspection (0: off): small objects rest on furniture tops, which a base camera sees
-    from across a room in a few pixels, too few for a perceived encoder to recognise. With a
-    range, every low surface of the map (occupied cells whose highest map point lies between
-    ``inspect_heights``) that no fused frame has seen from within this depth (m) is an
-    exploration target beside the frontiers: the base drives to a free cell within
-    ``inspect_range`` of it and turns to face it, fusing the close view. Walls do not qualify:
-    from beyond 1.5 m the camera sees them above 1.6 m."""
-    inspect_heights: tuple[float, float] = (0.25, 1.45)
-    """Lowest and highest top (m above the floor) of a surface to inspect (``inspect_range``)."""
-    inspect_last: bool = False
-    """Inspect surfaces only once no frontier is left (False: the nearer of the two, by path)."""
     presume_after: int = 200
     """From this step on (0: never), and once no frontier is left, a goal the score floor rejects
     everywhere is presumed present, as an instruction's objects are for the pushers: the search
@@ -151,11 +138,7 @@ class NavigatorConfig:
         if not (isinstance(self.reject_radius, (int, float)) and not isinstance(self.reject_radius, bool)
                 and 0 < self.reject_radius < math.inf):
             raise ValueError(f"reject_radius: expected a finite number > 0, got {self.reject_radius!r}")
-        lo_hi = self.inspect_heights
-        if not (isinstance(lo_hi, tuple) and len(lo_hi) == 2 and all(isinstance(v, (int, float)) and not isinstance(v, bool) for v in lo_hi)
-                and 0 <= lo_hi[0] < lo_hi[1] < math.inf):
-            raise ValueError(f"inspect_heights: expected (low, high) metres with 0 <= low < high, got {lo_hi!r}")
-        for name in ("keyframe_move", "keyframe_turn_deg", "stuck_move", "explore_range", "inspect_range"):
+        for name in ("keyframe_move", "keyframe_turn_deg", "stuck_move", "explore_range"):
             value = getattr(self, name)
             if not (isinstance(value, (int, float)) and not isinstance(value, bool) and 0 <= value < math.inf):
                 raise ValueError(f"{name}: expected a finite number >= 0, got {value!r}")
@@ -166,25 +149,6 @@ _CLOSE_STRIDE = 2
 
 _CLOSE_FILL = 2
 """Closing iterations that fill the gaps between those samples on the grid."""
-
-_SURFACE_POINTS = 3
-"""Map points a cell needs to count as part of a surface (``inspect_range``)."""
-
-_SURFACE_CELLS = 4
-"""Smallest surface (cells) worth inspecting."""
-
-_SEEN_ENOUGH = 0.8
-"""Fraction of a surface's cells seen up close on the way that counts it as inspected."""
-
-_FACE_TOLERANCE = 0.3
-"""Heading error (rad) at which the base faces a surface it inspects."""
-
-
-def _lattice_keys(xy: np.ndarray, step: float) -> np.ndarray:
-    """World (x, y) -> sorted unique keys ``ix * 2**32 + iy`` of the lattice of side ``step``, (N, 2) -> (K,)."""
-    ij = np.floor(np.asarray(xy, np.float64) / step).astype(np.int64)
-    return np.unique((ij[:, 0] << 32) + (ij[:, 1] & 0xFFFFFFFF))
-
 
 _BUMP_RADIUS = 0.12
 """Radius (m) of the virtual obstacle the bump rule marks ahead of a stuck base."""
@@ -240,11 +204,6 @@ class MapNavigator:
         self._presumes = bool(self.config.presume_after) and not self.privileged
         """Whether this search may presume its goal present (``presume_after``, perceived maps only)."""
         self._close_keys = np.zeros(0, np.int64)
-        self._near_keys = np.zeros(0, np.int64)
-        """Surfaces seen within ``inspect_range`` (or given up on), keys as ``_close_keys``."""
-        self._fused_now = False
-        self._inspecting: np.ndarray | None = None
-        """Footprint (M, 2) of the surface the base is on its way to inspect (``inspect_range``)."""
         """Space seen within ``explore_range``: world (x, y) on a lattice of half the grid's
         cell side, as ``ix * 2**32 + iy`` keys, sorted and unique."""
         self.log: list[str] = []
@@ -282,102 +241,32 @@ class MapNavigator:
         return grid, inflated
 
     def _see_close(self, observation) -> None:
-        """Add the space this frame shows within ``explore_range`` (and within ``inspect_range``)
-        to the close-range sets."""
+        """Add the space this frame shows within ``explore_range`` to the close-range set."""
         c = self.config
+        xy = world_points(observation["depth"], observation["K"], observation["cam_to_world"],
+                          max_depth=c.explore_range, stride=_CLOSE_STRIDE)[:, :2]
         step = c.grid.resolution / 2
-        for reach, name in ((c.explore_range, "_close_keys"), (c.inspect_range, "_near_keys")):
-            if reach > 0:
-                xy = world_points(observation["depth"], observation["K"], observation["cam_to_world"],
-                                  max_depth=reach, stride=_CLOSE_STRIDE)[:, :2]
-                setattr(self, name, np.union1d(getattr(self, name), _lattice_keys(xy, step)))
-
-    def _lattice_mask(self, keys: np.ndarray, grid) -> np.ndarray:
-        """(H, W) bool: the cells of ``grid`` that hold a lattice key of ``keys`` (gaps of a few
-        cells closed: depth samples land sparsely on far, slanted surfaces)."""
-        mask = np.zeros(grid.shape, bool)
-        if len(keys):
-            ix = keys >> 32
-            iy = (keys & 0xFFFFFFFF).astype(np.int64)
-            iy = np.where(iy >= 2**31, iy - 2**32, iy)
-            step = self.config.grid.resolution / 2
-            cells = grid.world_to_cell((np.stack([ix, iy], axis=1) + 0.5) * step)
-            cells = cells[grid.in_bounds(cells)]
-            mask[cells[:, 0], cells[:, 1]] = True
-            mask = ndimage.binary_closing(mask, iterations=_CLOSE_FILL)
-        return mask
+        ij = np.floor(xy / step).astype(np.int64)
+        keys = (ij[:, 0] << 32) + (ij[:, 1] & 0xFFFFFFFF)
+        self._close_keys = np.union1d(self._close_keys, keys)
 
     def _frontier_grid(self, grid):
         """The grid frontiers are found on: ``grid`` itself, or with ``explore_range`` its
         observed cells narrowed to those seen up close (occupied cells stay observed)."""
         if self.config.explore_range <= 0:
             return grid
-        close = self._lattice_mask(self._close_keys, grid)
+        close = np.zeros(grid.shape, bool)
+        if len(self._close_keys):
+            ix = self._close_keys >> 32
+            iy = (self._close_keys & 0xFFFFFFFF).astype(np.int64)
+            iy = np.where(iy >= 2**31, iy - 2**32, iy)
+            step = self.config.grid.resolution / 2
+            cells = grid.world_to_cell((np.stack([ix, iy], axis=1) + 0.5) * step)
+            cells = cells[grid.in_bounds(cells)]
+            close[cells[:, 0], cells[:, 1]] = True
+            # Depth samples land sparsely on far, slanted floor: close gaps of a few cells.
+            close = ndimage.binary_closing(close, iterations=_CLOSE_FILL)
         return dataclasses.replace(grid, known_hw=(grid.known_hw & close) | grid.occupied_hw)
-
-    def _surfaces(self, grid) -> list[np.ndarray]:
-        """Low surfaces not yet seen from within ``inspect_range`` (``inspect_heights``), as
-        world (x, y) of their cells, (M, 2) each, largest first."""
-        c = self.config
-        pts = self.mapper.map.points
-        pts = pts[pts[:, 2] >= c.grid.obstacle_z_min]
-        cells = grid.world_to_cell(pts[:, :2])
-        inside = grid.in_bounds(cells)
-        cells, z = cells[inside], pts[inside, 2]
-        top = np.full(grid.shape, -np.inf)
-        np.maximum.at(top, (cells[:, 0], cells[:, 1]), z)
-        count = np.zeros(grid.shape, np.int64)
-        np.add.at(count, (cells[:, 0], cells[:, 1]), 1)
-        lo, hi = c.inspect_heights
-        todo = (top >= lo) & (top <= hi) & (count >= _SURFACE_POINTS) & ~self._lattice_mask(self._near_keys, grid)
-        labels, n = ndimage.label(todo, structure=np.ones((3, 3), bool))
-        out = [grid.cell_to_world(np.argwhere(labels == k)) for k in range(1, n + 1)]
-        return sorted((s for s in out if len(s) >= _SURFACE_CELLS), key=len, reverse=True)
-
-    @staticmethod
-    def _path_lengths(inflated, start: np.ndarray) -> np.ndarray:
-        """Shortest 8-connected path length (m) from the base to every cell over the inflated
-        grid's free (or unobserved) cells, (H, W); ``inf`` where unreachable."""
-        free = ~inflated.blocked_hw(unknown_is_free=True)
-        cell = inflated.world_to_cell(np.asarray(start, np.float64)[None])[0]
-        source = np.zeros(inflated.shape, bool)
-        if inflated.in_bounds(cell[None])[0]:
-            free[cell[0], cell[1]] = source[cell[0], cell[1]] = True
-        return geodesic_field(free, source, inflated.resolution)
-
-    @staticmethod
-    def _path_length_at(reach: np.ndarray, grid, xy: np.ndarray) -> float:
-        cell = grid.world_to_cell(np.asarray(xy, np.float64)[None])[0]
-        return float(reach[cell[0], cell[1]]) if grid.in_bounds(cell[None])[0] else math.inf
-
-    def _mark_inspected(self, footprint: np.ndarray) -> None:
-        """Count a surface as inspected (seen close, or given up on)."""
-        step = self.config.grid.resolution / 2
-        corners = np.concatenate([footprint + np.array([dx, dy]) for dx in (-step / 2, step / 2) for dy in (-step / 2, step / 2)])
-        self._near_keys = np.union1d(self._near_keys, _lattice_keys(corners, step))
-
-    def _choose_surface(self, grid, inflated, start: np.ndarray, reach: np.ndarray):
-        """The surface to inspect next: the one with the nearest standpoint by path (an observed
-        free cell within ``0.6 * inspect_range`` of it); surfaces with no reachable standpoint are
-        given up on. ``reach``: path length (m) from the base to every cell (``inf``: unreachable).
-        Returns ``(standpoint (2,), footprint (M, 2), path length)`` or None."""
-        c = self.config
-        standoff = max(0.6 * c.inspect_range, c.robot_radius + c.clearance + 2 * grid.resolution)
-        candidates = np.isfinite(reach) & grid.known_hw
-        best = None
-        for footprint in self._surfaces(grid):
-            cells = grid.world_to_cell(footprint)
-            mask = np.ones(grid.shape, bool)
-            mask[cells[:, 0], cells[:, 1]] = False
-            near = candidates & (ndimage.distance_transform_edt(mask) * grid.resolution <= standoff)
-            if not near.any():
-                self._mark_inspected(footprint)
-                continue
-            d = np.where(near, reach, np.inf)
-            k = np.unravel_index(int(np.argmin(d)), d.shape)
-            if best is None or d[k] < best[2]:
-                best = (grid.cell_to_world(np.array(k)), footprint, float(d[k]))
-        return best
 
     def _locate(self):
         """The map's answer for the goal, without regions centred within ``reject_radius`` of a
@@ -453,33 +342,19 @@ class MapNavigator:
                 self._to_goal = True
             else:
                 self._note(f"'{goal_text}' found but not reachable from here; exploring")
-        self._inspecting = None
         if target is None:
             frontier = choose_frontier(find_frontiers(self._frontier_grid(grid), start, inflated=inflated), start, self._visited)
-            surface = None
-            if self.config.inspect_range > 0 and (frontier is None or not self.config.inspect_last):
-                reach = self._path_lengths(inflated, start)
-                surface = self._choose_surface(grid, inflated, start, reach)
-            if surface is not None and (frontier is None or surface[2] <= self._path_length_at(reach, inflated, frontier.target_xy)):
-                target, self._inspecting = surface[0], surface[1]
-                if surface[2] <= 2 * grid.resolution:  # already at the standpoint: face the surface
-                    self._phase = "face"
-                    return self._face(pose)
-            elif frontier is None:
+            if frontier is None:
                 if self._presumes and not self._exhausted:
                     self._exhausted = True
-                    self._note(f"no goal and no {'frontier or surface' if self.config.inspect_range > 0 else 'frontier'} left: presuming the goal present")
+                    self._note("no goal and no frontier left: presuming the goal present")
                     return self._plan(pose)
                 self._note("no goal and no frontier left: stop")
                 return search_action(stop=True)
-            else:
-                target = frontier.target_xy
-                self._visited.append(target)
+            target = frontier.target_xy
+            self._visited.append(target)
         plan = plan_base_path(inflated, start, target, self.config.planner, seed=self.seed + self._steps)
         if not plan.solved:
-            if self._inspecting is not None:
-                self._mark_inspected(self._inspecting)
-                self._inspecting = None
             self._failures += 1
             self._note(f"planning to {np.round(target, 2).tolist()} failed: {plan.status} ({plan.reason})")
             if self._failures >= self.config.max_plan_failures:
@@ -494,8 +369,7 @@ class MapNavigator:
             self._note(f"at the closest free point to '{goal_text}': stop")
             return search_action(stop=True)
         self._path, self._track, self._phase = plan.path, TrackingState(), "follow"
-        kind = "goal" if self._to_goal else ("surface" if self._inspecting is not None else "frontier")
-        self._note(f"{kind} path of {plan.length:.2f} m to {np.round(target, 2).tolist()}")
+        self._note(f"{'goal' if self._to_goal else 'frontier'} path of {plan.length:.2f} m to {np.round(target, 2).tolist()}")
         return self._follow(pose)
 
     def _follow(self, pose: np.ndarray) -> np.ndarray:
@@ -504,35 +378,9 @@ class MapNavigator:
         if cmd.done:
             if self._to_goal:
                 return self._plan(pose, arrived=True)  # re-check from here: stops when within reach
-            if self._inspecting is not None:
-                self._phase = "face"
-                return self._face(pose)
             self._phase, self._turned = "look", 0.0
             return search_action(0.0, self.config.look_angular)
         return search_action(cmd.linear, cmd.angular)
-
-    def _face(self, pose: np.ndarray) -> np.ndarray:
-        """Turn towards the surface being inspected; once facing it with this step's frame fused,
-        count it as inspected and plan on."""
-        centre = np.median(self._inspecting, axis=0)
-        err = math.remainder(math.atan2(centre[1] - pose[1], centre[0] - pose[0]) - pose[2], 2 * math.pi)
-        if abs(err) > _FACE_TOLERANCE:
-            return search_action(0.0, math.copysign(self.config.look_angular, err))
-        if not self._fused_now:  # the frame facing it goes into the map first
-            return search_action(0.0, 0.0)
-        self._mark_inspected(self._inspecting)
-        self._note(f"surface at {np.round(centre, 2).tolist()} inspected")
-        self._inspecting = None
-        return self._plan(pose)
-
-    def _inspected_on_the_way(self, grid) -> bool:
-        """Whether most of the surface being approached was already seen within ``inspect_range``."""
-        cells = grid.world_to_cell(self._inspecting)
-        cells = cells[grid.in_bounds(cells)]
-        if not len(cells):
-            return True
-        near = self._lattice_mask(self._near_keys, grid)
-        return float(np.mean(near[cells[:, 0], cells[:, 1]])) >= _SEEN_ENOUGH
 
     def _bumped(self, pose: np.ndarray) -> bool:
         """The bump rule (``config.stuck_steps``): True when the base is stuck (and then a virtual
@@ -558,8 +406,6 @@ class MapNavigator:
     def _fuse_now(self, pose: np.ndarray) -> bool:
         """Whether this step's frame goes into the map (``integrate_every``, then the keyframe rule)."""
         c = self.config
-        if self._phase == "face":
-            return True
         if not (self._phase == "look" or self._steps % max(1, c.integrate_every) == 0):
             return False
         if self._last_fused is None or (c.keyframe_move <= 0 and c.keyframe_turn_deg <= 0):
@@ -583,11 +429,10 @@ class MapNavigator:
             self._goal = str(observation["goal"])
             self.mapper.reset(**privileged_labels(self.mapper, info))
             self._started = True
-        self._fused_now = self._fuse_now(pose)
-        if self._fused_now:
+        if self._fuse_now(pose):
             self.mapper.integrate(observation, segmentation=(info or {}).get("segmentation") if self.privileged else None)
             self._last_fused = pose.copy()
-            if self.config.explore_range > 0 or self.config.inspect_range > 0:
+            if self.config.explore_range > 0:
                 self._see_close(observation)
         self._steps += 1
         if self._last_yaw is not None:
@@ -597,8 +442,6 @@ class MapNavigator:
             if self._turned < 2 * math.pi - 0.3:
                 return search_action(0.0, self.config.look_angular)
             return self._plan(pose)
-        if self._phase == "face":
-            return self._face(pose)
         if self._backoff > 0:
             self._backoff -= 1
             if self._backoff > 0:
@@ -611,11 +454,7 @@ class MapNavigator:
                 if not self._to_goal and self._locate().found:
                     self._note(f"'{self._goal}' appeared: replan")
                     return self._plan(pose)
-                grid, inflated = self._grids(pose[:2])
-                if self._inspecting is not None and self._inspected_on_the_way(grid):
-                    self._mark_inspected(self._inspecting)
-                    self._note("the surface ahead was seen up close on the way: replan")
-                    return self._plan(pose)
+                _, inflated = self._grids(pose[:2])
                 if check_path_blocked(inflated, self._path, position_xy=pose[:2], skip_distance=0.3).blocked:
                     self._note("path blocked: replan")
                     return self._plan(pose)

@@ -149,14 +149,21 @@ def _parser() -> argparse.ArgumentParser:
     return p
 
 
-def _scan_config(parser: argparse.ArgumentParser, frames: int, size: str) -> dict:
-    """``--frames`` and ``--size`` as :class:`FloorConfig` fields (a parser error naming what arrived otherwise)."""
+def parse_image_size(parser: argparse.ArgumentParser, size: str) -> tuple[int, int]:
+    """A ``--size`` argument ``WIDTHxHEIGHT`` as ``(width, height)`` pixels (a parser error naming
+    what arrived otherwise)."""
     w, _, h = size.lower().partition("x")
     if not (w.isdigit() and h.isdigit() and int(w) > 0 and int(h) > 0):
         parser.error(f"--size: expected WIDTHxHEIGHT in pixels such as 320x240, got {size!r}")
+    return int(w), int(h)
+
+
+def _scan_config(parser: argparse.ArgumentParser, frames: int, size: str) -> dict:
+    """``--frames`` and ``--size`` as :class:`FloorConfig` fields (a parser error naming what arrived otherwise)."""
+    w, h = parse_image_size(parser, size)
     if frames < 1:
         parser.error(f"--frames: expected at least 1, got {frames}")
-    return {"frames": frames, "width": int(w), "height": int(h)}
+    return {"frames": frames, "width": w, "height": h}
 
 
 def main(argv: list[str] | None = None) -> int:

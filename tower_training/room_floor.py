@@ -26,11 +26,13 @@ without it uses its table floor everywhere.
     python -m tower_training.room_floor --dry-run            # derive and print
     python -m tower_training.room_floor                      # derive and write into the shipped v2 tower
     python -m tower_training.room_floor --tower-dir DIR      # another exported tower
+    python -m tower_training.room_floor --size 320x240       # views at another image size
 """
 
 from __future__ import annotations
 
 import argparse
+import dataclasses
 import sys
 import time
 from dataclasses import asdict, dataclass, field
@@ -145,14 +147,20 @@ def main(argv: list[str] | None = None) -> int:
     p.add_argument("--dry-run", action="store_true", help="print the calibration, write nothing")
     p.add_argument("--scenes", type=int, default=RoomFloorConfig.scenes, help="calibration apartments (half choose, half measure)")
     p.add_argument("--views", type=int, default=RoomFloorConfig.views, help="views per apartment")
+    p.add_argument("--size", default=f"{RoomFloorConfig().view.width}x{RoomFloorConfig().view.height}",
+                   help="view image size WIDTHxHEIGHT, the search camera's (default %(default)s)")
     args = p.parse_args(argv)
+    from tower_training.evaluate import parse_image_size
+
+    width, height = parse_image_size(p, args.size)
     encoder = None
     if args.tower_dir is not None:
         from conceptfusion.perception.registry import make_encoder
 
         encoder = make_encoder(f"embedded:{args.tower_dir}")
     t0 = time.perf_counter()
-    result = calibrate_room_floor(RoomFloorConfig(scenes=args.scenes, views=args.views), encoder=encoder)
+    view = dataclasses.replace(RoomFloorConfig().view, width=width, height=height)
+    result = calibrate_room_floor(RoomFloorConfig(scenes=args.scenes, views=args.views, view=view), encoder=encoder)
     for part in ("calibration", "validation"):
         r = result[part]
         print(f"{part}: floor {result['score_floor']:.3f}: present found {r['present_found']:.3f} (n={r['n_present']}), "

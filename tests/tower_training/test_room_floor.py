@@ -72,3 +72,28 @@ def test_the_first_calibration_apartment_reproduces_its_recorded_scores():
         else:
             assert round(score, 2) == pytest.approx(float(value), abs=0.006)
         assert (score >= floor) == (name in r["absent"])  # missed present below, found absent above
+
+
+def test_size_reaches_the_views_and_bad_sizes_are_refused(monkeypatch, capsys):
+    import tower_training.room_floor as rf
+
+    seen = {}
+    split = {"present_found": 0.7, "n_present": 10, "absent_rejected": 0.9, "n_absent": 50,
+             "absent_rejected_same_parent": 0.8, "n_absent_same_parent": 5, "balanced_accuracy": 0.8}
+
+    def fake(config, *, encoder=None):
+        seen["config"] = config
+        return {"score_floor": 0.2, "calibration": split, "validation": split}
+
+    monkeypatch.setattr(rf, "calibrate_room_floor", fake)
+    monkeypatch.setattr(rf, "write_room_floor", lambda *a, **k: pytest.fail("--dry-run must not write"))
+    assert rf.main(["--dry-run", "--size", "320x240", "--views", "5"]) == 0
+    config = seen["config"]
+    assert (config.view.width, config.view.height, config.views) == (320, 240, 5)
+    # Only the image size changes: the camera placement stays the search camera's.
+    assert config.view.eye_height_m == RoomFloorConfig().view.eye_height_m
+    assert "floor 0.200" in capsys.readouterr().out
+    assert rf.main(["--dry-run"]) == 0 and (seen["config"].view.width, seen["config"].view.height) == (160, 120)
+    with pytest.raises(SystemExit):
+        rf.main(["--dry-run", "--size", "320by240"])
+    assert re.search(r"--size: expected WIDTHxHEIGHT in pixels such as 320x240, got '320by240'", capsys.readouterr().err)
