@@ -1,0 +1,159 @@
+"""Why a perceived map navigator misses its goal: how large it sees objects, and where the goal ranks.
+
+    python benchmarks/bench_search_recognition.py [--episodes calibration|validation] [--limit 60] [--at 200]
+        [--encoder embedded-v2] [--every 10] [--json OUT.jsonl]
+
+Runs ``map-navigator`` on the development searches of ``search-v2`` (never the test episodes),
+exactly as the harness runs it (same environment settings, seeds and agent options), and measures
+from the environment's ground truth, which only this script reads, never the agent:
+
+* **ranks**: at step ``--at`` and at the end of each search, for every object of the apartment
+  (boxes from the reset's scene graph) the median score, for the goal description, of the map
+  points with features inside its box (at least 10 of them, else the object is not in the map);
+  the goal's rank among the objects in the map and its point count, for failed and solved searches;
+* **proposals**: on every ``--every``-th frame the navigator sees, the RGB-D proposer's recall of
+  the objects in view (a mask with IoU >= 0.5 against the ground-truth segmentation), by the
+  object's pixel count, and the goal's pixel count whenever it is in view.
+"""
+
+from __future__ import annotations
+
+import argparse
+import collections
+import json
+import statistics
+import sys
+
+import numpy as np
+
+_MIN_POINTS = 10
+"""Featured map points an object needs inside its box to count as in the map."""
+
+
+def goal_rank(mapper, goal: str, boxes: np.ndarray, goal_index: int) -> dict:
+    """The goal's rank (1 = best) among the objects in the map by the median score of their
+    points for ``goal``; ``rank`` None when the goal is not in the map.
+
+    Shape:
+        boxes: (num_objects, 2, 3) world boxes, lower and upper corners.
+    """
+    pts = mapper.map.points
+    medians, counts = [], []
+    scores = mapper.map.scores_many(mapper.text_vector(goal)[None])[0] if len(pts) else np.zeros(0, np.float32)
+    for lo, hi in boxes:
+        inside = np.all((pts >= lo - 0.02) & (pts <= hi + 0.02), axis=1) if len(pts) else np.zeros(0, bool)
+        s = scores[inside]
+        s = s[np.isfinite(s)]
+        counts.append(int(len(s)))
+        medians.append(float(np.median(s)) if len(s) >= _MIN_POINTS else None)
+    g = medians[goal_index]
+    others = [m for i, m in enumerate(medians) if i != goal_index and m is not None]
+    return {"rank": None if g is None else 1 + sum(m > g for m in others),
+            "objects_in_map": len(others) + (g is not None), "goal_points": counts[goal_index]}
+
+
+def _recall(proposer, obs, segmentation, buckets, goal_pixels, goal_index) -> None:
+    masks = proposer.propose(obs["rgb"], obs["depth"], obs["K"])
+    for oid in np.unique(segmentation[segmentation >= 0]):
+        m = segmentation == oid
+        n = int(m.sum())
+        if n < 4:
+            continue
+        best = float(((masks & m).sum(axis=(1, 2)) / (masks | m).sum(axis=(1, 2))).max()) if len(masks) else 0.0
+        b = buckets[min(int(np.log2(n)), 12)]
+        b[0] += 1
+        b[1] += best >= 0.5
+        if oid == goal_index:
+            goal_pixels.append(n)
+
+
+def run(episodes: str, limit: int, at: int, encoder: str | None, every: int, out=None, log=print) -> dict:
+    from agents.registry import make_agent
+    from conceptfusion.perception.masks.registry import make_proposer
+    from harness.runner.develop import development_suite
+    from harness.runner.run import RunConfig, episode_jobs
+    from harness.runner.tasks import env_kwargs_for, episode_seed
+    from sim_envs.envs.object_search import ObjectSearchEnv
+
+    suite = development_suite("search-v2", episodes=episodes)
+    options = {} if encoder is None else {"encoder": encoder}
+    jobs = episode_jobs(suite, RunConfig(suites=("search-v2",), agents=("map-navigator",), agent_kwargs=options,
+                                         backend="serial", record="none"), "recognition")[:limit]
+    proposer = make_proposer("rgbd")
+    buckets: dict[int, list[int]] = collections.defaultdict(lambda: [0, 0])
+    goal_pixels: list[int] = []
+    rows, env, env_key = [], None, None
+    for job in jobs:
+        agent = make_agent(job.agent, **job.agent_kwargs)
+        kwargs = {**env_kwargs_for(job.task, job.env_kwargs, agent), "segmentation": True}
+        if env is None or env_key != sorted(kwargs.items()):
+            env, env_key = ObjectSearchEnv(**kwargs), sorted(kwargs.items())
+        obs, info = env.reset(seed=job.seed, options={"episode": job.episode})
+        agent.reset(seed=episode_seed(job))
+        boxes = np.array([o["aabb"] for o in info["scene_graph"]["objects"]], np.float64)
+        goal_index = [o["id"] for o in info["scene_graph"]["objects"]].index(job.episode.goals[0].object_id)
+        goal = str(obs["goal"])
+        snaps, steps = {}, 0
+        while True:
+            if steps % every == 0:
+                _recall(proposer, obs, info["segmentation"], buckets, goal_pixels, goal_index)
+            obs, _, terminated, truncated, info = env.step(agent.act(obs, None))
+            steps += 1
+            if steps == at:
+                snaps["at"] = goal_rank(agent.mapper, goal, boxes, goal_index)
+            if terminated or truncated:
+                break
+        snaps["end"] = goal_rank(agent.mapper, goal, boxes, goal_index)
+        row = {"episode_id": job.episode.episode_id, "success": bool(info["success"]), "steps": int(info["steps"]), "goal": goal, **snaps}
+        rows.append(row)
+        if out is not None:
+            out.write(json.dumps(row) + "\n")
+            out.flush()
+        log(f"{row['episode_id']}: success={row['success']} steps={row['steps']} at {at}: {snaps.get('at')} end: {snaps['end']}")
+    return {"rows": rows, "buckets": dict(buckets), "goal_pixels": goal_pixels}
+
+
+def summary(result: dict, at: int) -> list[str]:
+    rows = result["rows"]
+    lines = [f"{len(rows)} searches, {sum(r['success'] for r in rows)} solved"]
+    for solved in (False, True):
+        group = [r for r in rows if r["success"] == solved]
+        snap = [(r.get("at") if not solved else None) or r["end"] for r in group]
+        inmap = [s for s in snap if s["rank"] is not None]
+        if not inmap:
+            continue
+        what = f"failed, at step {at} (or the end)" if not solved else "solved, at the end"
+        lines.append(f"{what}: goal in the map in {len(inmap)} of {len(group)}; median points {statistics.median(s['goal_points'] for s in inmap):.0f}; "
+                     f"rank 1 in {sum(s['rank'] == 1 for s in inmap)}, median rank {statistics.median(s['rank'] for s in inmap):.0f} "
+                     f"of a median {statistics.median(s['objects_in_map'] for s in inmap):.0f} objects")
+    for b in sorted(result["buckets"]):
+        n, hit = result["buckets"][b]
+        lines.append(f"objects of {2 ** b}-{2 ** (b + 1) - 1} pixels: {n} in view, proposer recall@0.5 {hit / n:.2f}")
+    if result["goal_pixels"]:
+        lines.append(f"goal in view: {len(result['goal_pixels'])} frames, median {statistics.median(result['goal_pixels']):.0f} pixels")
+    return lines
+
+
+def main(argv: list[str] | None = None) -> int:
+    ap = argparse.ArgumentParser(description=__doc__.splitlines()[0])
+    ap.add_argument("--episodes", choices=("calibration", "validation"), default="calibration")
+    ap.add_argument("--limit", type=int, default=60, help="first N development searches")
+    ap.add_argument("--at", type=int, default=200, help="step of the mid-search snapshot (the presumption step by default)")
+    ap.add_argument("--encoder", default=None, help="perception (default: the suite's)")
+    ap.add_argument("--every", type=int, default=10, help="proposer recall on every N-th frame")
+    ap.add_argument("--json", default=None, help="also write one JSON line per search")
+    args = ap.parse_args(argv)
+    if args.limit < 1 or args.at < 1 or args.every < 1:
+        ap.error(f"--limit, --at and --every: expected integers >= 1, got {args.limit}, {args.at}, {args.every}")
+    out = open(args.json, "w") if args.json else None
+    try:
+        result = run(args.episodes, args.limit, args.at, args.encoder, args.every, out)
+    finally:
+        if out is not None:
+            out.close()
+    print("\n".join(summary(result, args.at)))
+    return 0
+
+
+if __name__ == "__main__":
+    sys.exit(main())

@@ -1,0 +1,54 @@
+"""The search diagnosis (``benchmarks/bench_search_recognition.py``): the goal's rank among the objects
+in the map, from ground-truth boxes and the map's scores."""
+
+from __future__ import annotations
+
+import importlib.util
+from pathlib import Path
+from types import SimpleNamespace
+
+import numpy as np
+import pytest
+
+_PATH = Path(__file__).resolve().parents[2] / "benchmarks" / "bench_search_recognition.py"
+spec = importlib.util.spec_from_file_location("search_recognition", _PATH)
+search_recognition = importlib.util.module_from_spec(spec)
+spec.loader.exec_module(search_recognition)
+
+
+def _mapper(points, scores):
+    points, scores = np.asarray(points, np.float64), np.asarray(scores, np.float32)
+    return SimpleNamespace(map=SimpleNamespace(points=points, scores_many=lambda q: scores[None]),
+                           text_vector=lambda text: np.ones(4, np.float32))
+
+
+def _cluster(centre, n, rng):
+    return np.asarray(centre) + rng.uniform(-0.03, 0.03, (n, 3))
+
+
+def test_goal_rank_counts_objects_that_score_higher():
+    rng = np.random.default_rng(0)
+    boxes = np.array([[[x - 0.1, -0.1, 0.7], [x + 0.1, 0.1, 0.9]] for x in (0.0, 1.0, 2.0, 3.0)])
+    pts = np.concatenate([_cluster((0.0, 0, 0.8), 30, rng), _cluster((1.0, 0, 0.8), 30, rng),
+                          _cluster((2.0, 0, 0.8), 30, rng), _cluster((3.0, 0, 0.8), 5, rng)])
+    scores = np.concatenate([np.full(30, 0.2), np.full(30, 0.3), np.full(30, 0.1), np.full(5, 0.9)])
+    scores[:10] = np.nan  # featureless points do not count
+    m = _mapper(pts, scores)
+    # Object 3 has too few points to be in the map; the goal (0) is beaten by object 1 only.
+    assert search_recognition.goal_rank(m, "goal", boxes, 0) == {"rank": 2, "objects_in_map": 3, "goal_points": 20}
+    assert search_recognition.goal_rank(m, "goal", boxes, 1)["rank"] == 1
+    assert search_recognition.goal_rank(m, "goal", boxes, 2)["rank"] == 3
+    assert search_recognition.goal_rank(m, "goal", boxes, 3) == {"rank": None, "objects_in_map": 3, "goal_points": 5}
+
+
+def test_goal_rank_of_an_empty_map():
+    boxes = np.array([[[0, 0, 0], [1, 1, 1]]], np.float64)
+    assert search_recognition.goal_rank(_mapper(np.zeros((0, 3)), np.zeros(0)), "goal", boxes, 0) == \
+        {"rank": None, "objects_in_map": 0, "goal_points": 0}
+
+
+@pytest.mark.parametrize("argv", [["--limit", "0"], ["--at", "0"], ["--every", "0"]])
+def test_bad_counts_are_refused(argv, capsys):
+    with pytest.raises(SystemExit):
+        search_recognition.main(argv)
+    assert "expected integers >= 1" in capsys.readouterr().err
