@@ -13,7 +13,10 @@ from the environment's ground truth, which only this script reads, never the age
   the goal's rank among the objects in the map and its point count, for failed and solved searches;
 * **proposals**: on every ``--every``-th frame the navigator sees, the RGB-D proposer's recall of
   the objects in view (a mask with IoU >= 0.5 against the ground-truth segmentation), by the
-  object's pixel count, and the goal's pixel count whenever it is in view.
+  object's pixel count, and the goal's pixel count whenever it is in view;
+* **names**: for each object so matched, whether the navigator's encoder names the crop of its
+  best mask (the tight box the feature pipeline encodes) by its category, top-1 among every
+  library category name, by the same pixel counts.
 """
 
 from __future__ import annotations
@@ -52,19 +55,34 @@ def goal_rank(mapper, goal: str, boxes: np.ndarray, goal_index: int) -> dict:
             "objects_in_map": len(others) + (g is not None), "goal_points": counts[goal_index]}
 
 
-def _recall(proposer, obs, segmentation, buckets, goal_pixels, goal_index) -> None:
+def _recall(proposer, obs, segmentation, buckets, goal_pixels, goal_index, namer=None, categories=()) -> None:
+    """Proposer recall (and, with ``namer``, naming) of the objects in one frame, into ``buckets``:
+    log2 pixel count -> [in view, matched by a mask, named right]."""
+    from conceptfusion.perception.features import crop_masks
+
     masks = proposer.propose(obs["rgb"], obs["depth"], obs["K"])
+    matched = []
     for oid in np.unique(segmentation[segmentation >= 0]):
         m = segmentation == oid
         n = int(m.sum())
         if n < 4:
             continue
-        best = float(((masks & m).sum(axis=(1, 2)) / (masks | m).sum(axis=(1, 2))).max()) if len(masks) else 0.0
+        iou = (masks & m).sum(axis=(1, 2)) / (masks | m).sum(axis=(1, 2)) if len(masks) else np.zeros(0)
         b = buckets[min(int(np.log2(n)), 12)]
         b[0] += 1
-        b[1] += best >= 0.5
+        if len(iou) and iou.max() >= 0.5:
+            b[1] += 1
+            matched.append((b, int(np.argmax(iou)), categories[oid] if len(categories) else None))
         if oid == goal_index:
             goal_pixels.append(n)
+    if namer is None or not matched:
+        return
+    encoder, names, name_vecs = namer
+    crops = crop_masks(obs["rgb"], masks[[k for _, k, _ in matched]])
+    emb = np.asarray(encoder.encode_image(crops), np.float32)
+    top = np.argmax(emb @ name_vecs.T, axis=1)
+    for (b, _, category), k in zip(matched, top):
+        b[2] += names[int(k)] == category
 
 
 def run(episodes: str, limit: int, at: int, encoder: str | None, every: int, out=None, log=print) -> dict:
@@ -80,9 +98,12 @@ def run(episodes: str, limit: int, at: int, encoder: str | None, every: int, out
     jobs = episode_jobs(suite, RunConfig(suites=("search-v2",), agents=("map-navigator",), agent_kwargs=options,
                                          backend="serial", record="none"), "recognition")[:limit]
     proposer = make_proposer("rgbd")
-    buckets: dict[int, list[int]] = collections.defaultdict(lambda: [0, 0])
+    buckets: dict[int, list[int]] = collections.defaultdict(lambda: [0, 0, 0])
+    from sim_envs.assets.library import catalogue
+
+    names = sorted(catalogue().categories)
     goal_pixels: list[int] = []
-    rows, env, env_key = [], None, None
+    rows, env, env_key, namer = [], None, None, None
     for job in jobs:
         agent = make_agent(job.agent, **job.agent_kwargs)
         kwargs = {**env_kwargs_for(job.task, job.env_kwargs, agent), "segmentation": True}
@@ -93,10 +114,14 @@ def run(episodes: str, limit: int, at: int, encoder: str | None, every: int, out
         boxes = np.array([o["aabb"] for o in info["scene_graph"]["objects"]], np.float64)
         goal_index = [o["id"] for o in info["scene_graph"]["objects"]].index(job.episode.goals[0].object_id)
         goal = str(obs["goal"])
+        categories = [o["category"] for o in info["scene_graph"]["objects"]]
+        if namer is None:
+            name_vecs = np.asarray(agent.mapper.featurizer.encode_text(names), np.float32)
+            namer = (agent.mapper.encoder, names, name_vecs)
         snaps, steps = {}, 0
         while True:
             if steps % every == 0:
-                _recall(proposer, obs, info["segmentation"], buckets, goal_pixels, goal_index)
+                _recall(proposer, obs, info["segmentation"], buckets, goal_pixels, goal_index, namer, categories)
             obs, _, terminated, truncated, info = env.step(agent.act(obs, None))
             steps += 1
             if steps == at:
@@ -127,8 +152,9 @@ def summary(result: dict, at: int) -> list[str]:
                      f"rank 1 in {sum(s['rank'] == 1 for s in inmap)}, median rank {statistics.median(s['rank'] for s in inmap):.0f} "
                      f"of a median {statistics.median(s['objects_in_map'] for s in inmap):.0f} objects")
     for b in sorted(result["buckets"]):
-        n, hit = result["buckets"][b]
-        lines.append(f"objects of {2 ** b}-{2 ** (b + 1) - 1} pixels: {n} in view, proposer recall@0.5 {hit / n:.2f}")
+        n, hit, named = result["buckets"][b]
+        lines.append(f"objects of {2 ** b}-{2 ** (b + 1) - 1} pixels: {n} in view, proposer recall@0.5 {hit / n:.2f}"
+                     + (f", named right (top-1 of the library's categories) {named}/{hit} = {named / hit:.2f} of those matched" if hit else ""))
     if result["goal_pixels"]:
         lines.append(f"goal in view: {len(result['goal_pixels'])} frames, median {statistics.median(result['goal_pixels']):.0f} pixels")
     return lines

@@ -52,3 +52,29 @@ def test_bad_counts_are_refused(argv, capsys):
     with pytest.raises(SystemExit):
         search_recognition.main(argv)
     assert "expected integers >= 1" in capsys.readouterr().err
+
+
+def test_recall_and_naming_by_object_size():
+    import collections
+
+    seg = np.full((20, 20), -1)
+    seg[0:2, 0:3] = 0    # 6 pixels: no mask matches it
+    seg[5:10, 5:10] = 1  # 25 pixels: matched, named right
+    seg[12:20, 0:8] = 2  # 64 pixels: matched, named wrong
+    masks = np.zeros((3, 20, 20), bool)
+    masks[0, 5:10, 5:10] = True
+    masks[1, 12:20, 0:8] = True
+    masks[2, 0:1, 10:20] = True  # matches nothing
+    proposer = SimpleNamespace(propose=lambda rgb, depth, K: masks)
+    names = ["cup", "mug", "spoon"]
+    vecs = np.eye(3, dtype=np.float32)
+    # The encoder answers "mug" for every crop: right for object 1 (a mug), wrong for object 2.
+    encoder = SimpleNamespace(encode_image=lambda crops: np.tile(vecs[1], (len(crops), 1)))
+    obs = {"rgb": np.zeros((20, 20, 3), np.uint8), "depth": np.ones((20, 20), np.float32), "K": np.eye(3)}
+    buckets, goal_pixels = collections.defaultdict(lambda: [0, 0, 0]), []
+    search_recognition._recall(proposer, obs, seg, buckets, goal_pixels, 1, (encoder, names, vecs), ["spoon", "mug", "cup"])
+    assert dict(buckets) == {2: [1, 0, 0], 4: [1, 1, 1], 6: [1, 1, 0]}
+    assert goal_pixels == [25]
+    lines = search_recognition.summary({"rows": [], "buckets": dict(buckets), "goal_pixels": goal_pixels}, 200)
+    assert "objects of 16-31 pixels: 1 in view, proposer recall@0.5 1.00, named right" in "\n".join(lines)
+    assert "goal in view: 1 frames, median 25 pixels" in lines[-1]
