@@ -1,7 +1,7 @@
 """Why a perceived map navigator misses its goal: how large it sees objects, and where the goal ranks.
 
     python benchmarks/bench_search_recognition.py [--episodes calibration|validation] [--limit 60] [--at 200]
-        [--encoder embedded-v2] [--every 10] [--json OUT.jsonl]
+        [--encoder embedded-v2] [--every 10] [--json OUT.jsonl] [--isolated]
 
 Runs ``map-navigator`` on the development searches of ``search-v2`` (never the test episodes),
 exactly as the harness runs it (same environment settings, seeds and agent options), and measures
@@ -14,6 +14,10 @@ from the environment's ground truth, which only this script reads, never the age
 * **proposals**: on every ``--every``-th frame the navigator sees, the RGB-D proposer's recall of
   the objects in view (a mask with IoU >= 0.5 against the ground-truth segmentation), by the
   object's pixel count, and the goal's pixel count whenever it is in view;
+* **isolated** (``--isolated``): beside the navigator's map, a second map fused from the same
+  frames in which a pixel keeps its feature only when a mask isolates its object (IoU >= 0.5 with
+  the object's ground-truth segment); the goal's rank there too, to tell views that never
+  isolated the goal from features averaged over views that did not;
 * **names**: for each object so matched, whether the navigator's encoder names the crop of its
   best mask (the tight box the feature pipeline encodes) by its category, top-1 among every
   library category name, by the same pixel counts.
@@ -85,7 +89,26 @@ def _recall(proposer, obs, segmentation, buckets, goal_pixels, goal_index, namer
         b[2] += names[int(k)] == category
 
 
-def run(episodes: str, limit: int, at: int, encoder: str | None, every: int, out=None, log=print) -> dict:
+def isolated_features(featurizer, obs, segmentation):
+    """The frame's pixel-aligned features as ``featurizer`` computes them, kept only on pixels that
+    a mask isolates the object of (IoU >= 0.5 with its ground-truth segment); -1 elsewhere."""
+    from conceptfusion.perception.features import PixelFeatures
+    from conceptfusion.perception.pipeline import frame_features
+
+    masks = featurizer.proposer.propose(obs["rgb"], obs["depth"], obs["K"])
+    feats = frame_features(obs["rgb"], masks, featurizer.encoder, uniqueness=featurizer.uniqueness, mode=featurizer.mode)
+    keep = np.zeros(segmentation.shape, bool)
+    for oid in np.unique(segmentation[segmentation >= 0]):
+        m = segmentation == oid
+        if not len(masks):
+            break
+        iou = (masks & m).sum(axis=(1, 2)) / (masks | m).sum(axis=(1, 2))
+        if iou.max() >= 0.5:
+            keep |= m & masks[int(np.argmax(iou))]
+    return PixelFeatures(feats.palette_pd, np.where(keep, feats.index_hw, -1).astype(np.int32))
+
+
+def run(episodes: str, limit: int, at: int, encoder: str | None, every: int, out=None, log=print, isolated: bool = False) -> dict:
     from agents.registry import make_agent
     from conceptfusion.perception.masks.registry import make_proposer
     from harness.runner.develop import development_suite
@@ -119,16 +142,23 @@ def run(episodes: str, limit: int, at: int, encoder: str | None, every: int, out
             name_vecs = np.asarray(agent.mapper.featurizer.encode_text(names), np.float32)
             namer = (agent.mapper.encoder, names, name_vecs)
         snaps, steps = {}, 0
+        iso = _isolated_map(agent, info) if isolated else None
         while True:
             if steps % every == 0:
                 _recall(proposer, obs, info["segmentation"], buckets, goal_pixels, goal_index, namer, categories)
             obs, _, terminated, truncated, info = env.step(agent.act(obs, None))
             steps += 1
+            if iso is not None:
+                iso.seg = info["segmentation"]
             if steps == at:
                 snaps["at"] = goal_rank(agent.mapper, goal, boxes, goal_index)
+                if iso is not None:
+                    snaps["isolated_at"] = goal_rank(iso.view, goal, boxes, goal_index)
             if terminated or truncated:
                 break
         snaps["end"] = goal_rank(agent.mapper, goal, boxes, goal_index)
+        if iso is not None:
+            snaps["isolated_end"] = goal_rank(iso.view, goal, boxes, goal_index)
         row = {"episode_id": job.episode.episode_id, "success": bool(info["success"]), "steps": int(info["steps"]), "goal": goal, **snaps}
         rows.append(row)
         if out is not None:
@@ -136,6 +166,28 @@ def run(episodes: str, limit: int, at: int, encoder: str | None, every: int, out
             out.flush()
         log(f"{row['episode_id']}: success={row['success']} steps={row['steps']} at {at}: {snaps.get('at')} end: {snaps['end']}")
     return {"rows": rows, "buckets": dict(buckets), "goal_pixels": goal_pixels}
+
+
+def _isolated_map(agent, info):
+    """A second map that every frame the agent fuses also goes into, with :func:`isolated_features`
+    (the segmentation of the frame being acted on is set on the returned object as ``seg``)."""
+    from types import SimpleNamespace
+
+    from conceptfusion.map.fusion import PointFusionMap
+
+    mapper = agent.mapper
+    iso = SimpleNamespace(seg=info["segmentation"], map=PointFusionMap(mapper.featurizer.dim, max_depth=mapper.config.max_depth))
+    iso.view = SimpleNamespace(map=iso.map, text_vector=mapper.text_vector)
+    fuse = mapper.integrate
+
+    def integrate(observation, *, segmentation=None):
+        fuse(observation, segmentation=segmentation)
+        feats = isolated_features(mapper.featurizer, observation, iso.seg)
+        iso.map.integrate(observation["rgb"], np.asarray(observation["depth"], np.float32), observation["K"],
+                          observation["cam_to_world"], feats)
+
+    mapper.integrate = integrate
+    return iso
 
 
 def summary(result: dict, at: int) -> list[str]:
@@ -151,6 +203,20 @@ def summary(result: dict, at: int) -> list[str]:
         lines.append(f"{what}: goal in the map in {len(inmap)} of {len(group)}; median points {statistics.median(s['goal_points'] for s in inmap):.0f}; "
                      f"rank 1 in {sum(s['rank'] == 1 for s in inmap)}, median rank {statistics.median(s['rank'] for s in inmap):.0f} "
                      f"of a median {statistics.median(s['objects_in_map'] for s in inmap):.0f} objects")
+    if any("isolated_end" in r for r in rows):
+        for solved in (False, True):
+            group = [r for r in rows if r["success"] == solved]
+            pairs = [((r.get("at") if not solved else None) or r["end"], (r.get("isolated_at") if not solved else None) or r["isolated_end"])
+                     for r in group]
+            both = [(a, b) for a, b in pairs if a["rank"] is not None and b["rank"] is not None]
+            lines.append(f"{'failed' if not solved else 'solved'}: goal isolated by a mask in enough views to be in the isolated map "
+                         f"in {sum(b['rank'] is not None for _, b in pairs)} of {len(group)}")
+            if both:
+                lines.append(f"{'failed' if not solved else 'solved'}, goal in both maps in {len(both)}: rank 1 in {sum(a['rank'] == 1 for a, _ in both)} "
+                             f"(fused) against {sum(b['rank'] == 1 for _, b in both)} (isolated views only); median rank "
+                             f"{statistics.median(a['rank'] for a, _ in both):.0f} against {statistics.median(b['rank'] for _, b in both):.0f}; "
+                             f"median points {statistics.median(a['goal_points'] for a, _ in both):.0f} against "
+                             f"{statistics.median(b['goal_points'] for _, b in both):.0f}")
     for b in sorted(result["buckets"]):
         n, hit, named = result["buckets"][b]
         lines.append(f"objects of {2 ** b}-{2 ** (b + 1) - 1} pixels: {n} in view, proposer recall@0.5 {hit / n:.2f}"
@@ -168,12 +234,13 @@ def main(argv: list[str] | None = None) -> int:
     ap.add_argument("--encoder", default=None, help="perception (default: the suite's)")
     ap.add_argument("--every", type=int, default=10, help="proposer recall on every N-th frame")
     ap.add_argument("--json", default=None, help="also write one JSON line per search")
+    ap.add_argument("--isolated", action="store_true", help="also fuse a map from isolated objects' pixels only (twice the perception)")
     args = ap.parse_args(argv)
     if args.limit < 1 or args.at < 1 or args.every < 1:
         ap.error(f"--limit, --at and --every: expected integers >= 1, got {args.limit}, {args.at}, {args.every}")
     out = open(args.json, "w") if args.json else None
     try:
-        result = run(args.episodes, args.limit, args.at, args.encoder, args.every, out)
+        result = run(args.episodes, args.limit, args.at, args.encoder, args.every, out, isolated=args.isolated)
     finally:
         if out is not None:
             out.close()

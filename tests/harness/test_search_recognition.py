@@ -78,3 +78,26 @@ def test_recall_and_naming_by_object_size():
     lines = search_recognition.summary({"rows": [], "buckets": dict(buckets), "goal_pixels": goal_pixels}, 200)
     assert "objects of 16-31 pixels: 1 in view, proposer recall@0.5 1.00, named right" in "\n".join(lines)
     assert "goal in view: 1 frames, median 25 pixels" in lines[-1]
+
+
+def test_isolated_features_keep_only_pixels_a_mask_isolates_the_object_of():
+    seg = np.full((20, 20), -1)
+    seg[2:6, 2:6] = 0     # isolated by mask 0
+    seg[10:12, 10:12] = 1  # only inside mask 1, which is mostly background (IoU 4/100)
+    masks = np.zeros((2, 20, 20), bool)
+    masks[0, 2:6, 2:6] = True
+    masks[1, 8:18, 8:18] = True
+    rng = np.random.default_rng(0)
+
+    def encode_image(images):
+        v = rng.normal(size=(len(images), 8)).astype(np.float32)
+        return v / np.linalg.norm(v, axis=1, keepdims=True)
+
+    featurizer = SimpleNamespace(proposer=SimpleNamespace(propose=lambda rgb, depth, K: masks),
+                                 encoder=SimpleNamespace(encode_image=encode_image, dim=8), uniqueness=True, mode="full")
+    obs = {"rgb": np.zeros((20, 20, 3), np.uint8), "depth": np.ones((20, 20), np.float32), "K": np.eye(3)}
+    feats = search_recognition.isolated_features(featurizer, obs, seg)
+    assert feats.index_hw.shape == (20, 20)
+    assert np.all(feats.index_hw[2:6, 2:6] >= 0)
+    kept = feats.index_hw >= 0
+    assert kept.sum() == 16  # object 1, mask 1's background and unmasked pixels lose their features
