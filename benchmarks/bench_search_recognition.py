@@ -36,6 +36,9 @@ import numpy as np
 _MIN_POINTS = 10
 """Featured map points an object needs inside its box to count as in the map."""
 
+_MATCH_IOU = 0.5
+"""IoU with an object's ground-truth segment at which a mask isolates the object."""
+
 
 def goal_rank(mapper, goal: str, boxes: np.ndarray, goal_index: int) -> dict:
     """The goal's rank (1 = best) among the objects in the map by the median score of their
@@ -59,6 +62,23 @@ def goal_rank(mapper, goal: str, boxes: np.ndarray, goal_index: int) -> dict:
             "objects_in_map": len(others) + (g is not None), "goal_points": counts[goal_index]}
 
 
+def isolating_masks(masks, segmentation) -> list[tuple[int, np.ndarray, int | None]]:
+    """Per object in view: its id, its ground-truth segment (H, W) bool and the index of the mask
+    that isolates it (the best IoU with its segment, when at least ``_MATCH_IOU``; else None).
+
+    Shape:
+        masks (R, H, W) bool, segmentation (H, W) int (-1: no object)."""
+    out = []
+    for oid in np.unique(segmentation[segmentation >= 0]):
+        seg = segmentation == oid
+        best = None
+        if len(masks):
+            iou = (masks & seg).sum(axis=(1, 2)) / (masks | seg).sum(axis=(1, 2))
+            best = int(np.argmax(iou)) if iou.max() >= _MATCH_IOU else None
+        out.append((int(oid), seg, best))
+    return out
+
+
 def _recall(proposer, obs, segmentation, buckets, goal_pixels, goal_index, namer=None, categories=()) -> None:
     """Proposer recall (and, with ``namer``, naming) of the objects in one frame, into ``buckets``:
     log2 pixel count -> [in view, matched by a mask, named right]."""
@@ -66,17 +86,15 @@ def _recall(proposer, obs, segmentation, buckets, goal_pixels, goal_index, namer
 
     masks = proposer.propose(obs["rgb"], obs["depth"], obs["K"])
     matched = []
-    for oid in np.unique(segmentation[segmentation >= 0]):
-        m = segmentation == oid
-        n = int(m.sum())
+    for oid, seg, best in isolating_masks(masks, segmentation):
+        n = int(seg.sum())
         if n < 4:
             continue
-        iou = (masks & m).sum(axis=(1, 2)) / (masks | m).sum(axis=(1, 2)) if len(masks) else np.zeros(0)
         b = buckets[min(int(np.log2(n)), 12)]
         b[0] += 1
-        if len(iou) and iou.max() >= 0.5:
+        if best is not None:
             b[1] += 1
-            matched.append((b, int(np.argmax(iou)), categories[oid] if len(categories) else None))
+            matched.append((b, best, categories[oid] if len(categories) else None))
         if oid == goal_index:
             goal_pixels.append(n)
     if namer is None or not matched:
@@ -98,13 +116,9 @@ def isolated_features(featurizer, obs, segmentation):
     masks = featurizer.proposer.propose(obs["rgb"], obs["depth"], obs["K"])
     feats = frame_features(obs["rgb"], masks, featurizer.encoder, uniqueness=featurizer.uniqueness, mode=featurizer.mode)
     keep = np.zeros(segmentation.shape, bool)
-    for oid in np.unique(segmentation[segmentation >= 0]):
-        m = segmentation == oid
-        if not len(masks):
-            break
-        iou = (masks & m).sum(axis=(1, 2)) / (masks | m).sum(axis=(1, 2))
-        if iou.max() >= 0.5:
-            keep |= m & masks[int(np.argmax(iou))]
+    for _, seg, best in isolating_masks(masks, segmentation):
+        if best is not None:
+            keep |= seg & masks[best]
     return PixelFeatures(feats.palette_pd, np.where(keep, feats.index_hw, -1).astype(np.int32))
 
 

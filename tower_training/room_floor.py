@@ -40,6 +40,7 @@ from pathlib import Path
 
 import numpy as np
 
+from tower_training.evaluate import parse_image_size
 from tower_training.score_floor import frames_query_scores, library_floor, write_score_floor
 from tower_training.room_views import RoomViewConfig
 
@@ -147,11 +148,10 @@ def main(argv: list[str] | None = None) -> int:
     p.add_argument("--dry-run", action="store_true", help="print the calibration, write nothing")
     p.add_argument("--scenes", type=int, default=RoomFloorConfig.scenes, help="calibration apartments (half choose, half measure)")
     p.add_argument("--views", type=int, default=RoomFloorConfig.views, help="views per apartment")
-    p.add_argument("--size", default=f"{RoomFloorConfig().view.width}x{RoomFloorConfig().view.height}",
+    default_view = RoomFloorConfig().view
+    p.add_argument("--size", default=f"{default_view.width}x{default_view.height}",
                    help="view image size WIDTHxHEIGHT, the search camera's (default %(default)s)")
     args = p.parse_args(argv)
-    from tower_training.evaluate import parse_image_size
-
     width, height = parse_image_size(p, args.size)
     encoder = None
     if args.tower_dir is not None:
@@ -159,7 +159,7 @@ def main(argv: list[str] | None = None) -> int:
 
         encoder = make_encoder(f"embedded:{args.tower_dir}")
     t0 = time.perf_counter()
-    view = dataclasses.replace(RoomFloorConfig().view, width=width, height=height)
+    view = dataclasses.replace(default_view, width=width, height=height)
     result = calibrate_room_floor(RoomFloorConfig(scenes=args.scenes, views=args.views, view=view), encoder=encoder)
     for part in ("calibration", "validation"):
         r = result[part]
