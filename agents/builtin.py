@@ -33,7 +33,7 @@ from __future__ import annotations
 
 from agents.concept_map import ConceptMapper, MapperConfig
 from agents.spec import AgentSpec, Option, register_agent
-from conceptfusion.perception.featurizer import FrameFeaturizer, PerceptionSpec, make_featurizer, score_floor_for
+from conceptfusion.perception.featurizer import SEARCH_PROPOSER, FrameFeaturizer, PerceptionSpec, make_featurizer, score_floor_for
 
 __all__ = ["make_mapper"]
 
@@ -43,7 +43,7 @@ def make_mapper(
     setting: str = "tabletop",
 ) -> ConceptMapper:
     """A :class:`ConceptMapper` for a perception spec (see the module docstring), with the
-    featurizer's score floor for ``setting`` (``"tabletop"`` or ``"household"``, see
+    featurizer's score floor for ``setting`` (``"tabletop"``, ``"household"`` or ``"search"``, see
     :func:`~conceptfusion.perception.featurizer.score_floor_for`: the v2 tower ships a floor
     calibrated on apartments).
 
@@ -77,7 +77,7 @@ def _frame_pusher(encoder: str = "embedded", proposer: str = "rgbd", assume_pres
                      PusherConfig(assume_present=assume_present, name_only_fallback=name_only_fallback, identify=identify), use_scan=False)
 
 
-def _map_navigator(encoder: str = "embedded", proposer: str = "rgbd", seed: int = 0, integrate_every: int = 1,
+def _map_navigator(encoder: str = "embedded", proposer: str = SEARCH_PROPOSER, seed: int = 0, integrate_every: int = 1,
                    keyframe_move: float = 0.3, keyframe_turn_deg: float = 40.0, goal_tolerance: float = 0.05,
                    stuck_steps: int = 0, explore_range: float = 0.0, recheck_faded: bool = False, presume_after: int = 200):
     from agents.navigator import MapNavigator, NavigatorConfig
@@ -85,13 +85,13 @@ def _map_navigator(encoder: str = "embedded", proposer: str = "rgbd", seed: int 
     config = NavigatorConfig(integrate_every=integrate_every, keyframe_move=keyframe_move, keyframe_turn_deg=keyframe_turn_deg,
                              goal_tolerance=goal_tolerance, stuck_steps=stuck_steps, explore_range=explore_range,
                              recheck_faded=recheck_faded, presume_after=presume_after)
-    return MapNavigator(make_mapper(encoder, proposer, setting="household"), config, seed=seed)
+    return MapNavigator(make_mapper(encoder, proposer, setting="search"), config, seed=seed)
 
 
-def _frame_searcher(encoder: str = "embedded", proposer: str = "rgbd"):
+def _frame_searcher(encoder: str = "embedded", proposer: str = SEARCH_PROPOSER):
     from agents.baselines import FrameSearcher
 
-    return FrameSearcher(make_mapper(encoder, proposer, persistent=False, setting="household"))
+    return FrameSearcher(make_mapper(encoder, proposer, persistent=False, setting="search"))
 
 
 def _known_encoder(spec: str) -> bool:
@@ -106,8 +106,11 @@ def _known_proposer(spec: str) -> bool:
 
 _PERCEPTION = {
     "encoder": Option(str, "embedded", _known_encoder, "an encoder spec, see cfharness list"),
-    "proposer": Option(str, "rgbd", _known_proposer, "a mask proposer name"),
+    "proposer": Option(str, "rgbd", _known_proposer, "a mask proposer spec"),
 }
+_SEARCH_PERCEPTION = {**_PERCEPTION, "proposer": Option(str, SEARCH_PROPOSER, _known_proposer, "a mask proposer spec")}
+"""The search agents' perception options: their proposals default to the small-object ones (see
+:data:`~conceptfusion.perception.featurizer.SEARCH_PROPOSER`)."""
 _SEED = Option.at_least(int, 0, 0)
 _PRESENCE = {"assume_present": Option(bool, True), "name_only_fallback": Option(bool, True), "identify": Option(bool, True)}
 """The pushers' options for objects their instruction names (:class:`~agents.pusher.PusherConfig`)."""
@@ -137,7 +140,7 @@ register_agent(AgentSpec(
 register_agent(AgentSpec(
     "map-navigator", _map_navigator, "object_search",
     "ConceptFusion map built online; goal query, OMPL path to the goal or a frontier, pure pursuit, stop",
-    {**_PERCEPTION, "seed": _SEED, "integrate_every": Option.at_least(int, 1, 1),
+    {**_SEARCH_PERCEPTION, "seed": _SEED, "integrate_every": Option.at_least(int, 1, 1),
      "keyframe_move": Option.at_least(float, 0.3, 0.0), "keyframe_turn_deg": Option.at_least(float, 40.0, 0.0),
      "goal_tolerance": Option.at_least(float, 0.05, 0.01), "stuck_steps": Option.at_least(int, 0, 0),
      "explore_range": Option.at_least(float, 0.0, 0.0), "recheck_faded": Option(bool, False),
@@ -146,7 +149,7 @@ register_agent(AgentSpec(
 register_agent(AgentSpec(
     "frame-searcher", _frame_searcher, "object_search",
     "map-free searcher: checks each frame with the same perception, drives to what it sees, wanders otherwise",
-    dict(_PERCEPTION),
+    dict(_SEARCH_PERCEPTION),
 ))
 register_agent(AgentSpec(
     "random-walker", "agents.baselines:RandomWalker", "object_search",

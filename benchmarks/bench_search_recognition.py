@@ -11,8 +11,8 @@ from the environment's ground truth, which only this script reads, never the age
   (boxes from the reset's scene graph) the median score, for the goal description, of the map
   points with features inside its box (at least 10 of them, else the object is not in the map);
   the goal's rank among the objects in the map and its point count, for failed and solved searches;
-* **proposals**: on every ``--every``-th frame the navigator sees, the RGB-D proposer's recall of
-  the objects in view (a mask with IoU >= 0.5 against the ground-truth segmentation), by the
+* **proposals**: on every ``--every``-th frame the navigator sees, the search agents' proposer's
+  (:data:`~conceptfusion.perception.featurizer.SEARCH_PROPOSER`) recall of the objects in view (a mask with IoU >= 0.5 against the ground-truth segmentation), by the
   object's pixel count, and the goal's pixel count whenever it is in view;
 * **isolated** (``--isolated``): beside the navigator's map, a second map fused from the same
   frames in which a pixel keeps its feature only when a mask isolates its object (IoU >= 0.5 with
@@ -122,19 +122,21 @@ def isolated_features(featurizer, obs, segmentation):
     return PixelFeatures(feats.palette_pd, np.where(keep, feats.index_hw, -1).astype(np.int32))
 
 
-def run(episodes: str, limit: int, at: int, encoder: str | None, every: int, out=None, log=print, isolated: bool = False) -> dict:
+def run(episodes: str, limit: int, at: int, encoder: str | None, every: int, out=None, log=print, isolated: bool = False,
+        env_kwargs: dict | None = None) -> dict:
     from agents.registry import make_agent
+    from conceptfusion.perception.featurizer import SEARCH_PROPOSER
     from conceptfusion.perception.masks.registry import make_proposer
     from harness.runner.develop import development_suite
     from harness.runner.run import RunConfig, episode_jobs
     from harness.runner.tasks import env_kwargs_for, episode_seed
     from sim_envs.envs.object_search import ObjectSearchEnv
 
-    suite = development_suite("search-v2", episodes=episodes)
+    suite = development_suite("search-v2", env_kwargs, episodes=episodes)
     options = {} if encoder is None else {"encoder": encoder}
     jobs = episode_jobs(suite, RunConfig(suites=("search-v2",), agents=("map-navigator",), agent_kwargs=options,
                                          backend="serial", record="none"), "recognition")[:limit]
-    proposer = make_proposer("rgbd")
+    proposer = make_proposer(SEARCH_PROPOSER)
     buckets: dict[int, list[int]] = collections.defaultdict(lambda: [0, 0, 0])
     from sim_envs.assets.library import catalogue
 
@@ -249,12 +251,17 @@ def main(argv: list[str] | None = None) -> int:
     ap.add_argument("--every", type=int, default=10, help="proposer recall on every N-th frame")
     ap.add_argument("--json", default=None, help="also write one JSON line per search")
     ap.add_argument("--isolated", action="store_true", help="also fuse a map from isolated objects' pixels only (twice the perception)")
+    ap.add_argument("--env-option", action="append", metavar="KEY=VALUE",
+                    help="one of the suite's environment settings, e.g. width=320 (repeatable)")
     args = ap.parse_args(argv)
+    from harness.runner.develop import parse_env_options
+
     if args.limit < 1 or args.at < 1 or args.every < 1:
         ap.error(f"--limit, --at and --every: expected integers >= 1, got {args.limit}, {args.at}, {args.every}")
     out = open(args.json, "w") if args.json else None
     try:
-        result = run(args.episodes, args.limit, args.at, args.encoder, args.every, out, isolated=args.isolated)
+        result = run(args.episodes, args.limit, args.at, args.encoder, args.every, out, isolated=args.isolated,
+                     env_kwargs=parse_env_options(args.env_option))
     finally:
         if out is not None:
             out.close()

@@ -4,29 +4,35 @@ The shipped floor (``metrics.score_floor``, :func:`tower_training.score_floor.ca
 is chosen on orbit scans of table arrangements: objects 0.5-1.4 m away, filling much of the
 frame. An object-search robot sees an apartment otherwise (from about 1.2 m up, one to a few
 metres away, small in a 160 x 120 frame), and its crops score lower against their names, so a
-table floor drops present goals there. This module derives a second floor,
-``metrics.score_floor_household``, by the same rule on what such a robot sees:
+table floor drops present goals there. This module derives floors for apartments by the same
+rule on what such a robot sees: ``metrics.score_floor_household`` (160 x 120 views, the default
+proposals: ``spatial-v2``'s apartment scans) and ``metrics.score_floor_search`` (``--setting
+search``: 320 x 240 views with the small-object proposals of
+:data:`~conceptfusion.perception.featurizer.SEARCH_PROPOSER`, as the search agents see):
 
 * **scenes**: v2 apartments (:func:`~sim_envs.scenes.gen_household_v2.generate_household_v2`) of
   ``calibration`` seeds from :data:`RoomFloorConfig.seed_offset` on (the table calibration takes
   the first calibration seeds; no evaluation scene, no tower training scene): the first half
   chooses the floor, the second half only measures it;
 * **views**: :func:`~tower_training.room_views.room_poses` views (a free floor cell of an
-  object's room, eye 0.9-1.45 m, the search camera's 70 degree field of view) at the search
-  environment's 160 x 120, fused into one map per apartment as an agent's mapper fuses them;
+  object's room, eye 0.9-1.45 m, the search camera's 70 degree field of view) at the setting's
+  image size, fused into one map per apartment as an agent's mapper fuses them;
 * **names and rule**: as on tables: present names are the categories of objects the views saw
   (at least ``min_pixels`` pixels), absent names every other library category except those the
   apartment has as furniture (its chairs and bookshelves are there, though not as objects); the
   floor maximises balanced accuracy (:func:`~tower_training.score_floor.choose_floor`).
 
-Agents that work in apartments (``map-navigator``, ``frame-searcher``) and the map suites on
-apartments read it through :func:`conceptfusion.perception.featurizer.score_floor_for`; a tower
-without it uses its table floor everywhere.
+The search agents (``map-navigator``, ``frame-searcher``) read the search floor and the map
+suites on apartments the household one, through
+:func:`conceptfusion.perception.featurizer.score_floor_for`; a tower without them falls back to
+the household floor, then to its table floor.
 
     python -m tower_training.room_floor --dry-run            # derive and print
     python -m tower_training.room_floor                      # derive and write into the shipped v2 tower
     python -m tower_training.room_floor --tower-dir DIR      # another exported tower
+    python -m tower_training.room_floor --setting search     # the search agents' floor (score_floor_search)
     python -m tower_training.room_floor --size 320x240       # views at another image size
+    python -m tower_training.room_floor --proposer rgbd:max_masks=32   # another proposer
 """
 
 from __future__ import annotations
@@ -44,10 +50,15 @@ from tower_training.evaluate import parse_image_size
 from tower_training.score_floor import frames_query_scores, library_floor, write_score_floor
 from tower_training.room_views import RoomViewConfig
 
-__all__ = ["RoomFloorConfig", "room_floor_seeds", "apartment_query_scores", "calibrate_room_floor", "write_room_floor", "main"]
+__all__ = ["RoomFloorConfig", "setting_config", "floor_key", "room_floor_seeds", "apartment_query_scores", "calibrate_room_floor", "write_room_floor", "main"]
 
 FLOOR_KEY = "score_floor_household"
-"""Where the floor goes in ``tower.json``'s ``metrics`` (its rates: ``FLOOR_KEY + "_calibration"``)."""
+"""Where the household floor goes in ``tower.json``'s ``metrics`` (its rates: ``FLOOR_KEY + "_calibration"``)."""
+
+
+def floor_key(setting: str) -> str:
+    """Where the floor of an apartment setting goes in ``tower.json``'s ``metrics``."""
+    return f"score_floor_{setting}"
 
 
 @dataclass(frozen=True)
@@ -64,17 +75,42 @@ class RoomFloorConfig:
     min_pixels: int = 60
     """Pixels of an object over the views for its name to count as present."""
     view: RoomViewConfig = field(default_factory=lambda: RoomViewConfig(width=160, height=120))
-    """Camera placement and image size (the search environment's 160 x 120)."""
+    """Camera placement and image size (160 x 120: ``spatial-v2``'s apartment scans)."""
     rng_seed: int = 0
     """Seed of the views' randomness."""
+    setting: str = "household"
+    """The floor setting derived (:data:`~conceptfusion.perception.featurizer.FLOOR_SETTINGS`):
+    it names the key written, ``metrics.score_floor_<setting>``."""
+    proposer: str = "rgbd"
+    """Mask proposer spec of the perception the floor is for."""
 
     def __post_init__(self) -> None:
+        from conceptfusion.perception.featurizer import FLOOR_SETTINGS
+
+        if self.setting not in FLOOR_SETTINGS or self.setting == "tabletop":
+            raise ValueError(f"setting: expected an apartment setting ({', '.join(s for s in FLOOR_SETTINGS if s != 'tabletop')}), "
+                             f"got {self.setting!r}")
         for name in ("scenes", "views", "min_pixels"):
             value = getattr(self, name)
             if isinstance(value, bool) or not isinstance(value, int) or value < (2 if name == "scenes" else 1):
                 raise ValueError(f"{name}: expected an integer >= {2 if name == 'scenes' else 1}, got {value!r}")
         if isinstance(self.seed_offset, bool) or not isinstance(self.seed_offset, int) or self.seed_offset < 0:
             raise ValueError(f"seed_offset: expected an integer >= 0, got {self.seed_offset!r}")
+
+
+def setting_config(setting: str) -> RoomFloorConfig:
+    """How the floor of an apartment setting is derived: ``"household"`` at 160 x 120 with the
+    default proposer; ``"search"`` as the search agents see (the ``search-v2`` camera's 320 x 240
+    and :data:`~conceptfusion.perception.featurizer.SEARCH_PROPOSER`). Both on the same apartments.
+
+    Raises:
+        ValueError: not an apartment setting.
+    """
+    if setting == "search":
+        from conceptfusion.perception.featurizer import SEARCH_PROPOSER
+
+        return RoomFloorConfig(setting="search", proposer=SEARCH_PROPOSER, view=RoomViewConfig(width=320, height=240))
+    return RoomFloorConfig(setting=setting)
 
 
 def room_floor_seeds(config: RoomFloorConfig, split=None) -> list[int]:
@@ -105,16 +141,17 @@ def apartment_query_scores(seed: int, featurizer, vocabulary, config: RoomFloorC
 
 
 def calibrate_room_floor(config: RoomFloorConfig = RoomFloorConfig(), *, encoder=None, log=print) -> dict:
-    """Derive the apartment floor (see the module docstring) for ``encoder`` (default: the
-    shipped v2 tower); returns ``{"score_floor", "calibration": {...}, "validation": {...},
+    """Derive an apartment floor (see the module docstring) for ``encoder`` (default: the shipped
+    v2 tower) with ``config.proposer``'s masks; returns ``{"score_floor", "calibration": {...}, "validation": {...},
     "seeds", "config"}``, the splits' rates as :func:`~tower_training.score_floor.calibrate_score_floor_v2`
     reports them (``absent_rejected_same_parent``: absent names sharing a parent group with a
     present object)."""
-    from conceptfusion.perception.featurizer import PerceivedFeaturizer, make_featurizer
+    from conceptfusion.perception.featurizer import PerceivedFeaturizer, PerceptionSpec, make_featurizer
     from conceptfusion.perception.masks.registry import make_proposer
     from sim_envs.assets.library import catalogue
 
-    featurizer = make_featurizer("embedded-v2") if encoder is None else PerceivedFeaturizer(encoder, make_proposer("rgbd"))
+    featurizer = (make_featurizer(PerceptionSpec.parse("embedded-v2", proposer=config.proposer)) if encoder is None
+                  else PerceivedFeaturizer(encoder, make_proposer(config.proposer)))
     cat = catalogue()
     vocab = sorted(cat.categories)
     seeds = room_floor_seeds(config)
@@ -131,15 +168,15 @@ def calibrate_room_floor(config: RoomFloorConfig = RoomFloorConfig(), *, encoder
     floor, summaries = library_floor(per_split)
     cfg = asdict(config)
     cfg["view"] = {k: list(v) if isinstance(v, tuple) else v for k, v in cfg["view"].items()}
-    return {"score_floor": floor, "world": "v2", "setting": "household", "seeds": seeds, "config": cfg, **summaries}
+    return {"score_floor": floor, "world": "v2", "setting": config.setting, "seeds": seeds, "config": cfg, **summaries}
 
 
 def write_room_floor(result: dict, tower_dir: str | Path | None = None) -> Path:
-    """Write a calibration into ``tower.json`` atomically: ``metrics.score_floor_household`` and
-    ``metrics.score_floor_household_calibration``; other fields are kept."""
+    """Write a calibration into ``tower.json`` atomically: ``metrics.score_floor_<setting>`` and
+    ``metrics.score_floor_<setting>_calibration``; other fields are kept."""
     from conceptfusion.perception.image_tower import SHIPPED_TOWER_V2_DIR
 
-    return write_score_floor(result, SHIPPED_TOWER_V2_DIR if tower_dir is None else tower_dir, key=FLOOR_KEY)
+    return write_score_floor(result, SHIPPED_TOWER_V2_DIR if tower_dir is None else tower_dir, key=floor_key(result["setting"]))
 
 
 def main(argv: list[str] | None = None) -> int:
@@ -148,19 +185,29 @@ def main(argv: list[str] | None = None) -> int:
     p.add_argument("--dry-run", action="store_true", help="print the calibration, write nothing")
     p.add_argument("--scenes", type=int, default=RoomFloorConfig.scenes, help="calibration apartments (half choose, half measure)")
     p.add_argument("--views", type=int, default=RoomFloorConfig.views, help="views per apartment")
-    default_view = RoomFloorConfig().view
-    p.add_argument("--size", default=f"{default_view.width}x{default_view.height}",
-                   help="view image size WIDTHxHEIGHT, the search camera's (default %(default)s)")
+    p.add_argument("--setting", choices=("household", "search"), default="household",
+                   help="household: 160x120 views, default proposals; search: the search agents' 320x240 views and proposals")
+    p.add_argument("--size", default=None, help="view image size WIDTHxHEIGHT (default: the setting's)")
+    p.add_argument("--proposer", default=None, help="mask proposer spec (default: the setting's)")
     args = p.parse_args(argv)
-    width, height = parse_image_size(p, args.size)
+    base = setting_config(args.setting)
+    width, height = parse_image_size(p, args.size) if args.size else (base.view.width, base.view.height)
+    proposer = base.proposer if args.proposer is None else args.proposer
+    try:
+        from conceptfusion.perception.masks.registry import make_proposer
+
+        make_proposer(proposer)
+    except ValueError as exc:
+        p.error(f"--proposer: {exc}")
     encoder = None
     if args.tower_dir is not None:
         from conceptfusion.perception.registry import make_encoder
 
         encoder = make_encoder(f"embedded:{args.tower_dir}")
     t0 = time.perf_counter()
-    view = dataclasses.replace(default_view, width=width, height=height)
-    result = calibrate_room_floor(RoomFloorConfig(scenes=args.scenes, views=args.views, view=view), encoder=encoder)
+    view = dataclasses.replace(base.view, width=width, height=height)
+    result = calibrate_room_floor(dataclasses.replace(base, scenes=args.scenes, views=args.views, view=view, proposer=proposer),
+                                  encoder=encoder)
     for part in ("calibration", "validation"):
         r = result[part]
         print(f"{part}: floor {result['score_floor']:.3f}: present found {r['present_found']:.3f} (n={r['n_present']}), "

@@ -36,7 +36,8 @@ from conceptfusion.errors import UnknownNameError
 from conceptfusion.frames import RGBDFrame
 from conceptfusion.names import unknown_name_error
 from conceptfusion.perception.features import PixelFeatures, check_mode
-from conceptfusion.perception.masks.registry import PROPOSERS, make_proposer
+from conceptfusion.perception.masks.registry import PROPOSERS, make_proposer, rgbd_settings
+from conceptfusion.perception.masks.rgbd_config import RGBDProposerConfig
 from conceptfusion.perception.oracle import GROUNDED_ORACLE_DIM, GROUNDED_ORACLE_MIN_SCORE, GroundedOracleFeatures, OracleFeatures
 from conceptfusion.perception.oracle_floor import ORACLE_TEXT_ENCODER, load_oracle_floor
 from conceptfusion.perception.pipeline import frame_features
@@ -58,6 +59,7 @@ __all__ = [
     "perception_names",
     "FLOOR_SETTINGS",
     "score_floor_for",
+    "SEARCH_PROPOSER",
     "encoder_vocabulary",
 ]
 
@@ -104,7 +106,8 @@ class PerceptionSpec:
     ``"onnx:DIR"``, ``"color"``, ...; see :mod:`conceptfusion.perception.registry`) or
     ``"oracle"`` / ``"oracle-open"`` (privileged ground-truth features). Stored in records as given."""
     proposer: str = "rgbd"
-    """Mask proposer registry spec (``"rgbd"``, ``"sam:CKPT"``, ``"gt"``); unused by the oracle."""
+    """Mask proposer registry spec (``"rgbd"``, ``"rgbd:KEY=VALUE,..."``, ``"sam:CKPT"``, ``"gt"``);
+    unused by the oracle."""
     mode: str = "full"
     """Pixel-feature variant (:data:`conceptfusion.perception.features.FEATURE_MODES`)."""
     uniqueness: bool = True
@@ -157,9 +160,11 @@ class PerceptionSpec:
             raise err
         if self.encoder_name in ORACLE_ENCODERS and sep:
             raise ValueError(f"encoder {self.encoder_name!r} takes no argument, got {text!r}")
-        prop = self.proposer.strip().partition(":")[0].lower()
-        if prop not in PROPOSERS:
-            raise unknown_name_error("mask proposer", prop, sorted(PROPOSERS))
+        prop, sep, arg = self.proposer.strip().partition(":")
+        if prop.lower() not in PROPOSERS:
+            raise unknown_name_error("mask proposer", prop.lower(), sorted(PROPOSERS))
+        if prop.lower() == "rgbd" and sep:
+            RGBDProposerConfig(**rgbd_settings(arg))  # a ValueError naming the setting
         return self
 
 
@@ -205,18 +210,30 @@ class FrameFeaturizer(Protocol):
         ...
 
 
-FLOOR_SETTINGS = ("tabletop", "household")
+FLOOR_SETTINGS = ("tabletop", "household", "search")
 """Where text queries are asked: a tabletop (objects close by; the floor every encoder calibrates
-first) or a household apartment (objects one to a few metres from a robot base's camera)."""
+first), a household apartment (objects one to a few metres from a robot base's camera, 160x120
+frames) or an apartment as the object-search agents see it (the same views at 320x240 with the
+small-object proposals of :data:`SEARCH_PROPOSER`)."""
+
+SEARCH_PROPOSER = "rgbd:fixed_size_pixels=19200"
+"""The object-search agents' mask proposals: the RGB-D proposer with the region sizes it uses on
+a 160x120 frame held in pixels (``fixed_size_pixels``), so the search's 320x240 frames segment
+objects down to 19 pixels on their own instead of 77 (identical to ``"rgbd"`` at 160x120)."""
+
+_FALLBACK = {"search": "household", "household": "tabletop"}
 
 
 def _score_floor(encoder, setting: str = "tabletop") -> float | None:
     """The calibrated floor an encoder ships for ``setting``: ``info["metrics"]["score_floor"]``
-    for tabletops; ``info["metrics"]["score_floor_household"]`` for apartments when it has one
-    (:mod:`tower_training.room_floor`), else its tabletop floor; None without either."""
+    for tabletops, ``score_floor_household`` for apartments and ``score_floor_search`` for the
+    search agents' view of them (:mod:`tower_training.room_floor`); a setting without its own
+    floor falls back to household, then tabletop; None without any."""
     metrics = getattr(encoder, "info", {}).get("metrics", {}) if hasattr(encoder, "info") else {}
-    if setting == "household" and metrics.get("score_floor_household") is not None:
-        return metrics["score_floor_household"]
+    while setting != "tabletop":
+        if metrics.get(f"score_floor_{setting}") is not None:
+            return metrics[f"score_floor_{setting}"]
+        setting = _FALLBACK[setting]
     return metrics.get("score_floor")
 
 

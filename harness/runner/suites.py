@@ -121,8 +121,16 @@ REARRANGE_V2_ENV = {"width": 320, "height": 240, "scan_frames": 8}
 (:mod:`harness.runner.develop`, ``map-pusher``, ``embedded-v2``): on the open-world validation
 tables 51 of 80 against 41 at 160x120 (13 gained, 3 lost), with ``oracle-open`` 73 against 74;
 on the calibration tables (trained instances only) 67 of 80 against 69 (2 gained, 4 lost); 12
-scan frames at 320x240 gave 47 of 80 on the validation tables. ``search-v2`` keeps 160x120: on
-its first 90 calibration episodes ``map-navigator`` found 40 at either size."""
+scan frames at 320x240 gave 47 of 80 on the validation tables."""
+
+SEARCH_V2_ENV = {"width": 320, "height": 240}
+"""Environment of ``search-v2``: 320x240 frames. The search agents' proposals
+(:data:`~conceptfusion.perception.featurizer.SEARCH_PROPOSER`) keep regions down to 19 pixels at
+this size, so objects a base sees a few pixels wide at 160x120 are segmented on their own, and
+their score floor is derived for these views (``score_floor_search``). Chosen on development
+episodes (``map-navigator``, ``embedded-v2``): on the open-world validation searches 32 of 88
+against 20 at 160x120 (17 gained, 5 lost); on the first 90 calibration searches 54 against 44
+(the default proposals at 320x240, which stop at 77-pixel regions: validation 21, calibration 42)."""
 
 SEARCH_V2_LIMIT = 40
 """Episodes ``search-v2`` runs unless ``--limit`` says otherwise: the first 40 of its 120, ten per
@@ -156,7 +164,7 @@ SUITES: dict[str, Suite] = {
             "object search in library-filled apartments (evaluation seeds): goals named by name, synonym, attribute or function",
             task="object_search", episodes_file=SCENES_ROOT / "household-v2" / "episodes-v2.jsonl",
             agents=("map-navigator", "frame-searcher", "random-walker"),
-            env_kwargs={"width": 160, "height": 120}, default_encoder="embedded-v2", limit=SEARCH_V2_LIMIT,
+            env_kwargs=dict(SEARCH_V2_ENV), default_encoder="embedded-v2", limit=SEARCH_V2_LIMIT,
         ),
         Suite("query", "maps", "text, image and click query localisation over fused tabletop maps (3D mIoU, detection accuracy)"),
         Suite("query-open", "maps",

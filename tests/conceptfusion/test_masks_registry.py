@@ -41,13 +41,28 @@ def test_make_proposer_by_name():
         ("sma:/x.pth", r"did you mean 'sam'"),
         ("mask2former", r"registered: gt, rgbd, sam"),
         ("sam", r"expected a checkpoint path"),
-        ("rgbd:fast", r"takes no argument"),
+        ("rgbd:fast", r"expected KEY=VALUE settings separated by commas, got 'fast'"),
+        ("rgbd:fine_scel=3", r"'fine_scel' is not a setting; expected one of .*fine_scale"),
+        ("rgbd:max_masks=1.5", r"max_masks expects an int, got '1.5'"),
+        ("rgbd:keep_background_planes=yes", r"keep_background_planes expects true or false"),
+        ("rgbd:merge_thresholds=2/x", r"merge_thresholds expects numbers separated by /"),
+        ("rgbd:fine_scale=1,fine_scale=2", r"'fine_scale' given twice"),
+        ("rgbd:min_area_fraction=2", r"min_area_fraction: expected a fraction in \[0, 1\], got 2.0"),
         ("gt:1", r"takes no argument"),
     ],
 )
 def test_make_proposer_bad_specs(spec, match):
     with pytest.raises(ValueError, match=match):
         make_proposer(spec)
+
+
+def test_rgbd_spec_overrides_settings():
+    p = make_proposer("rgbd: min_area_fraction=0.00025, fine_scale=15,max_masks=128,merge_thresholds=2/5,keep_background_planes=TRUE")
+    assert isinstance(p, RGBDProposer)
+    assert (p.config.min_area_fraction, p.config.fine_scale, p.config.max_masks) == (0.00025, 15.0, 128)
+    assert p.config.merge_thresholds == (2.0, 5.0) and p.config.keep_background_planes is True
+    assert p.config.dedupe_iou == RGBDProposer().config.dedupe_iou  # the rest keep their defaults
+    assert make_proposer("rgbd").config == RGBDProposer().config
 
 
 def test_make_proposer_needs_a_string():

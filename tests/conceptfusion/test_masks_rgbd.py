@@ -9,7 +9,7 @@ from conceptfusion.cameras import backproject, intrinsics_from_fovy, transform_p
 from conceptfusion.perception.encoders import ColorNameEncoder
 from conceptfusion.errors import DtypeError, ShapeError
 from conceptfusion.perception.masks.base import MaskProposer
-from conceptfusion.perception.masks.rgbd import RGBDProposer
+from conceptfusion.perception.masks.rgbd import RGBDProposer, frame_config
 from conceptfusion.perception.masks.rgbd_config import RGBDProposerConfig
 from conceptfusion.perception.pipeline import frame_features
 from conceptfusion.synthetic import Box, look_at, orbit_poses, render_boxes, tabletop_boxes
@@ -124,6 +124,30 @@ def test_plane_alone_gives_no_mask_and_box_on_plane_gives_the_box():
     assert _iou(masks, scene.segmentation == 1).max() >= 0.9
 
 
+def test_fixed_size_pixels_resolves_smaller_things_in_larger_frames():
+    """A 6 cm cube 2.9 m away covers 4 pixels of a 160x120 frame and 29 of a 320x240 one: the
+    default proposer (regions scale with the frame: 77 pixels at least at 320x240) misses it at
+    both sizes; with region sizes held at a 160x120 frame's, the larger frame segments it."""
+    floor = Box("floor", (0.0, 0.0, -0.05), (8.0, 8.0, 0.1), (150, 150, 150))
+    cube = Box("cube", (0.0, 0.0, 0.03), (0.06, 0.06, 0.06), (200, 30, 30))
+    pose = look_at((2.4, -1.6, 1.2), (0.0, 0.0, 0.0))
+    fixed = RGBDProposer(fixed_size_pixels=160 * 120)
+    for w, h in ((160, 120), (320, 240)):
+        k = intrinsics_from_fovy(60.0, w, h)
+        f = render_boxes([floor, cube], k, pose, h, w)
+        default, small = RGBDProposer().propose(f.rgb, f.depth, k), fixed.propose(f.rgb, f.depth, k)
+        assert len(default) == 0 or _iou(default, f.segmentation == 1).max() < 0.5
+        if w == 160:  # a frame of the fixed size is segmented exactly as by default
+            assert np.array_equal(small, default)
+        else:
+            assert _iou(small, f.segmentation == 1).max() >= 0.9
+    cfg = fixed.config
+    assert frame_config(cfg, 160 * 120) is cfg and frame_config(RGBDProposerConfig(), 320 * 240) == RGBDProposerConfig()
+    big = frame_config(cfg, 320 * 240)
+    assert (big.fine_scale, big.min_area_fraction) == (cfg.fine_scale / 4, cfg.min_area_fraction / 4)
+    assert frame_config(RGBDProposerConfig(fixed_size_pixels=10**6), 100).min_area_fraction == cfg.max_area_fraction  # capped
+
+
 def test_nan_depth_is_invalid_and_handled(frames, proposer):
     f = frames[0]
     depth = f.depth.copy()
@@ -210,6 +234,8 @@ def test_bad_inputs(proposer, rgb, depth, k, err, match):
         ({"normal_tol_deg": 200.0}, "normal_tol_deg"),
         ({"max_masks": 0}, "max_masks"),
         ({"depth_median_px": 7}, "depth_median_px"),
+        ({"fixed_size_pixels": -1}, r"fixed_size_pixels: expected an integer pixel count >= 0 \(0: off\), got -1"),
+        ({"fixed_size_pixels": True}, "fixed_size_pixels"),
     ],
 )
 def test_bad_config(kwargs, match):

@@ -5,6 +5,9 @@ Proposers, by registry name (the protocol and the shared checks are in
 
 * ``"rgbd"`` (default): :class:`conceptfusion.perception.masks.rgbd.RGBDProposer`, multi-scale graph
   segmentation on colour, depth and surface-normal discontinuities. Needs no weights.
+  ``"rgbd:KEY=VALUE,KEY=VALUE"`` overrides settings of
+  :class:`~conceptfusion.perception.masks.rgbd_config.RGBDProposerConfig`
+  (``"rgbd:min_area_fraction=0.00025,fine_scale=15"``; a tuple setting takes ``a/b/c``).
 * ``"sam:/path/to/checkpoint.pth"``: :class:`conceptfusion.perception.masks.sam.SamProposer`, SAM or
   MobileSAM's automatic mask generator with the official ConceptFusion settings (needs the
   ``segment_anything`` or ``mobile_sam`` package, imported only when the proposer is built, and a
@@ -16,20 +19,57 @@ Proposers, by registry name (the protocol and the shared checks are in
 
 from __future__ import annotations
 
+import dataclasses
 from typing import Callable
 
 from conceptfusion.names import unknown_name_error
 from conceptfusion.perception.masks.base import GroundTruthProposer, MaskProposer
 from conceptfusion.perception.masks.rgbd import RGBDProposer
+from conceptfusion.perception.masks.rgbd_config import RGBDProposerConfig
 from conceptfusion.perception.masks.sam import SamProposer
 
-__all__ = ["PROPOSERS", "make_proposer"]
+__all__ = ["PROPOSERS", "make_proposer", "rgbd_settings"]
+
+
+def rgbd_settings(arg: str) -> dict:
+    """``"KEY=VALUE,KEY=VALUE"`` as keyword overrides of
+    :class:`~conceptfusion.perception.masks.rgbd_config.RGBDProposerConfig`, each value converted
+    to its setting's type (``true``/``false`` for booleans, ``a/b/c`` for tuples).
+
+    Raises:
+        ValueError: an item is not ``KEY=VALUE``, a key is not a setting (naming them) or given
+            twice, or a value does not convert.
+    """
+    types = {f.name: type(f.default) for f in dataclasses.fields(RGBDProposerConfig)}
+    out: dict = {}
+    for item in arg.split(","):
+        key, sep, text = (part.strip() for part in item.partition("="))
+        if not sep or not key or not text:
+            raise ValueError(f"proposer 'rgbd': expected KEY=VALUE settings separated by commas, got {item!r} in 'rgbd:{arg}'")
+        if key not in types:
+            raise ValueError(f"proposer 'rgbd': {key!r} is not a setting; expected one of {', '.join(sorted(types))}")
+        if key in out:
+            raise ValueError(f"proposer 'rgbd': {key!r} given twice in 'rgbd:{arg}'")
+        kind = types[key]
+        try:
+            if kind is bool:
+                if text.lower() not in ("true", "false"):
+                    raise ValueError(text)
+                out[key] = text.lower() == "true"
+            elif kind is tuple:
+                out[key] = tuple(float(v) for v in text.split("/"))
+            else:
+                out[key] = kind(text)
+        except ValueError:
+            what = {bool: "true or false", tuple: "numbers separated by /"}.get(kind, f"a{'n' if kind is int else ''} {kind.__name__}")
+            raise ValueError(f"proposer 'rgbd': {key} expects {what}, got {text!r}") from None
+    return out
 
 
 def _make_rgbd(arg: str | None) -> MaskProposer:
-    if arg:
-        raise ValueError(f"proposer 'rgbd': takes no argument, got 'rgbd:{arg}'")
-    return RGBDProposer()
+    if not arg:
+        return RGBDProposer()
+    return RGBDProposer(RGBDProposerConfig(**rgbd_settings(arg)))
 
 
 def _make_sam(arg: str | None) -> MaskProposer:
@@ -53,7 +93,8 @@ PROPOSERS: dict[str, Callable[[str | None], MaskProposer]] = {
 
 
 def make_proposer(spec: str = "rgbd") -> MaskProposer:
-    """Build a proposer from its registry spec: ``"rgbd"``, ``"sam:/path/ckpt.pth"``, ``"gt"``.
+    """Build a proposer from its registry spec: ``"rgbd"`` (or ``"rgbd:KEY=VALUE,..."``),
+    ``"sam:/path/ckpt.pth"``, ``"gt"``.
 
     Unknown names raise ``ValueError`` listing the nearest registered names.
     """

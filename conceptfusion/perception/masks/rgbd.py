@@ -45,6 +45,7 @@ The result is a pure function of the inputs (no randomness, no threading).
 
 from __future__ import annotations
 
+import dataclasses
 import hashlib
 from collections import OrderedDict
 from dataclasses import fields
@@ -58,7 +59,7 @@ from conceptfusion.perception.masks.pixel_graph import edge_aware_normals, edge_
 from conceptfusion.perception.masks.regions import felzenszwalb, merge_levels, select_regions
 from conceptfusion.perception.masks.rgbd_config import RGBDProposerConfig
 
-__all__ = ["RGBDProposer"]
+__all__ = ["RGBDProposer", "frame_config"]
 
 _REF_PIXELS = 240 * 320
 
@@ -120,9 +121,9 @@ class RGBDProposer:
 
     def _segment(self, rgb, depth, K) -> tuple[np.ndarray, np.ndarray]:
         """:meth:`segment` of a checked frame (uint8 image, float32 depth with NaN where invalid, float64 K)."""
-        cfg = self.config
         h, w = depth.shape
         n = h * w
+        cfg = frame_config(self.config, n)
         with np.errstate(invalid="ignore"):
             depth = np.where(depth <= cfg.max_depth, depth, np.nan).astype(np.float32)
         if cfg.depth_median_px > 1:
@@ -139,6 +140,18 @@ class RGBDProposer:
         fine, count = felzenszwalb(src[order], dst[order], weight[order], n, k, min_size)
         labels, counts = merge_levels(fine, count, src, dst, weight, cfg.merge_thresholds)
         return select_regions(labels, counts, vertex.reshape(n, 3), valid.reshape(n), cfg, h, w)
+
+
+def frame_config(config: RGBDProposerConfig, pixels: int) -> RGBDProposerConfig:
+    """The settings a frame of ``pixels`` pixels is segmented with: ``config`` itself, or with
+    ``config.fixed_size_pixels`` its ``fine_scale`` and ``min_area_fraction`` rescaled so that
+    the regions they make keep the pixel sizes they have in a frame of that many pixels."""
+    fixed = config.fixed_size_pixels
+    if not fixed or fixed == pixels:
+        return config
+    factor = fixed / pixels
+    return dataclasses.replace(config, fine_scale=config.fine_scale * factor,
+                               min_area_fraction=min(config.min_area_fraction * factor, config.max_area_fraction))
 
 
 def _edges(rgb, depth, vertex, normals, valid, cfg: RGBDProposerConfig):

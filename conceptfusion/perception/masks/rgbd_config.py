@@ -70,6 +70,12 @@ class RGBDProposerConfig:
     """A region with at least this IoU with an already proposed one is dropped."""
     max_masks: int = 64
     """At most this many masks per frame (the largest are kept)."""
+    fixed_size_pixels: int = 0
+    """0: ``fine_scale`` and ``min_area_fraction`` scale with the frame, so a frame of any size
+    is cut into the same regions (a larger one in more detail). A pixel count (19200 for
+    160x120): both hold the pixel sizes they give a frame of that many pixels, so a larger frame
+    also resolves smaller things (a 320x240 frame then keeps regions down to 19 pixels instead of
+    77). Frames of that size are segmented as with 0."""
 
     def __post_init__(self) -> None:
         if any(not (t > 0) for t in self.merge_thresholds):
@@ -100,5 +106,7 @@ class RGBDProposerConfig:
                 f"min_area_fraction, max_area_fraction: expected min <= max, got {self.min_area_fraction} > "
                 f"{self.max_area_fraction}"
             )
+        if isinstance(self.fixed_size_pixels, bool) or not isinstance(self.fixed_size_pixels, int) or self.fixed_size_pixels < 0:
+            raise ValueError(f"fixed_size_pixels: expected an integer pixel count >= 0 (0: off), got {self.fixed_size_pixels!r}")
         if self.max_masks < 1:
             raise ValueError(f"max_masks: expected at least 1, got {self.max_masks}")
