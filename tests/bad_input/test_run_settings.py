@@ -89,6 +89,9 @@ def test_agent_options_need_a_taker_and_a_value_in_range(options, match):
 
 @pytest.mark.parametrize("suites, options, match", [
     (("search",), {"integrate_every": "0"}, r"^--agent-option integrate_every=0: .*expected an integer >= 1, got '0'$"),
+    (("search",), {"proposer": "rgbd:fine=3"}, r"^--agent-option proposer=rgbd:fine=3: agent 'map-navigator' option 'proposer': "
+                                               r"proposer 'rgbd': 'fine' is not a setting; expected one of .*fine_scale, fixed_size_pixels"),
+    (("search",), {"proposer": "rgbd:fixed_size_pixels=-3"}, r"fixed_size_pixels: expected an integer pixel count >= 0 \(0: off\), got -3"),
     (("search",), {"p_stop": "1.5"}, r"^--agent-option p_stop=1.5: .*expected a number in \[0.0, 1.0\], got '1.5'$"),
     (("search",), {"p_stop": "nan"}, r"^--agent-option p_stop=nan: .*got 'nan'$"),
     (("query",), {"frames": "0"}, r"^--agent-option frames=0: suite option 'frames': expected an integer >= 1, got '0'$"),
