@@ -46,19 +46,16 @@ from pathlib import Path
 
 import numpy as np
 
+from conceptfusion.perception.featurizer import score_floor_key as floor_key
 from tower_training.evaluate import parse_image_size
 from tower_training.score_floor import frames_query_scores, library_floor, write_score_floor
 from tower_training.room_views import RoomViewConfig
 
 __all__ = ["RoomFloorConfig", "setting_config", "floor_key", "room_floor_seeds", "apartment_query_scores", "calibrate_room_floor", "write_room_floor", "main"]
 
-FLOOR_KEY = "score_floor_household"
-"""Where the household floor goes in ``tower.json``'s ``metrics`` (its rates: ``FLOOR_KEY + "_calibration"``)."""
-
-
-def floor_key(setting: str) -> str:
-    """Where the floor of an apartment setting goes in ``tower.json``'s ``metrics``."""
-    return f"score_floor_{setting}"
+FLOOR_KEY = floor_key("household")
+"""Where the household floor goes in ``tower.json``'s ``metrics`` (its rates: ``FLOOR_KEY + "_calibration"``;
+:func:`floor_key` names any setting's, the key the featurizer reads)."""
 
 
 @dataclass(frozen=True)
@@ -194,9 +191,9 @@ def main(argv: list[str] | None = None) -> int:
     width, height = parse_image_size(p, args.size) if args.size else (base.view.width, base.view.height)
     proposer = base.proposer if args.proposer is None else args.proposer
     try:
-        from conceptfusion.perception.masks.registry import make_proposer
+        from conceptfusion.perception.featurizer import PerceptionSpec
 
-        make_proposer(proposer)
+        PerceptionSpec.parse("embedded-v2", proposer=proposer)  # names and settings checked, nothing built
     except ValueError as exc:
         p.error(f"--proposer: {exc}")
     encoder = None

@@ -36,8 +36,7 @@ from conceptfusion.errors import UnknownNameError
 from conceptfusion.frames import RGBDFrame
 from conceptfusion.names import unknown_name_error
 from conceptfusion.perception.features import PixelFeatures, check_mode
-from conceptfusion.perception.masks.registry import PROPOSERS, make_proposer, rgbd_settings
-from conceptfusion.perception.masks.rgbd_config import RGBDProposerConfig
+from conceptfusion.perception.masks.registry import PROPOSERS, make_proposer, rgbd_config
 from conceptfusion.perception.oracle import GROUNDED_ORACLE_DIM, GROUNDED_ORACLE_MIN_SCORE, GroundedOracleFeatures, OracleFeatures
 from conceptfusion.perception.oracle_floor import ORACLE_TEXT_ENCODER, load_oracle_floor
 from conceptfusion.perception.pipeline import frame_features
@@ -59,6 +58,7 @@ __all__ = [
     "perception_names",
     "FLOOR_SETTINGS",
     "score_floor_for",
+    "score_floor_key",
     "SEARCH_PROPOSER",
     "encoder_vocabulary",
 ]
@@ -161,10 +161,11 @@ class PerceptionSpec:
         if self.encoder_name in ORACLE_ENCODERS and sep:
             raise ValueError(f"encoder {self.encoder_name!r} takes no argument, got {text!r}")
         prop, sep, arg = self.proposer.strip().partition(":")
-        if prop.lower() not in PROPOSERS:
-            raise unknown_name_error("mask proposer", prop.lower(), sorted(PROPOSERS))
-        if prop.lower() == "rgbd" and sep:
-            RGBDProposerConfig(**rgbd_settings(arg))  # a ValueError naming the setting
+        prop = prop.lower()
+        if prop not in PROPOSERS:
+            raise unknown_name_error("mask proposer", prop, sorted(PROPOSERS))
+        if prop == "rgbd" and sep:
+            rgbd_config(arg)  # a ValueError naming the setting
         return self
 
 
@@ -224,6 +225,13 @@ objects down to 19 pixels on their own instead of 77 (identical to ``"rgbd"`` at
 _FALLBACK = {"search": "household", "household": "tabletop"}
 
 
+def score_floor_key(setting: str) -> str:
+    """Where an encoder's metadata keeps its floor for ``setting``
+    (``info["metrics"][score_floor_key(setting)]``): ``score_floor`` for tabletops,
+    ``score_floor_<setting>`` for the others."""
+    return "score_floor" if setting == "tabletop" else f"score_floor_{setting}"
+
+
 def _score_floor(encoder, setting: str = "tabletop") -> float | None:
     """The calibrated floor an encoder ships for ``setting``: ``info["metrics"]["score_floor"]``
     for tabletops, ``score_floor_household`` for apartments and ``score_floor_search`` for the
@@ -231,10 +239,10 @@ def _score_floor(encoder, setting: str = "tabletop") -> float | None:
     floor falls back to household, then tabletop; None without any."""
     metrics = getattr(encoder, "info", {}).get("metrics", {}) if hasattr(encoder, "info") else {}
     while setting != "tabletop":
-        if metrics.get(f"score_floor_{setting}") is not None:
-            return metrics[f"score_floor_{setting}"]
+        if metrics.get(score_floor_key(setting)) is not None:
+            return metrics[score_floor_key(setting)]
         setting = _FALLBACK[setting]
-    return metrics.get("score_floor")
+    return metrics.get(score_floor_key("tabletop"))
 
 
 def encoder_vocabulary(encoder) -> tuple[str, ...]:

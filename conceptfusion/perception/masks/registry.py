@@ -28,17 +28,17 @@ from conceptfusion.perception.masks.rgbd import RGBDProposer
 from conceptfusion.perception.masks.rgbd_config import RGBDProposerConfig
 from conceptfusion.perception.masks.sam import SamProposer
 
-__all__ = ["PROPOSERS", "make_proposer", "rgbd_settings"]
+__all__ = ["PROPOSERS", "make_proposer", "rgbd_config"]
 
 
-def rgbd_settings(arg: str) -> dict:
-    """``"KEY=VALUE,KEY=VALUE"`` as keyword overrides of
-    :class:`~conceptfusion.perception.masks.rgbd_config.RGBDProposerConfig`, each value converted
-    to its setting's type (``true``/``false`` for booleans, ``a/b/c`` for tuples).
+def rgbd_config(arg: str) -> RGBDProposerConfig:
+    """The :class:`~conceptfusion.perception.masks.rgbd_config.RGBDProposerConfig` of the settings
+    ``"KEY=VALUE,KEY=VALUE"`` (the rest at their defaults), each value converted to its setting's
+    type (``true``/``false`` for booleans, ``a/b/c`` for tuples).
 
     Raises:
         ValueError: an item is not ``KEY=VALUE``, a key is not a setting (naming them) or given
-            twice, or a value does not convert.
+            twice, a value does not convert, or the settings are out of range (the config's checks).
     """
     types = {f.name: type(f.default) for f in dataclasses.fields(RGBDProposerConfig)}
     out: dict = {}
@@ -63,13 +63,13 @@ def rgbd_settings(arg: str) -> dict:
         except ValueError:
             what = {bool: "true or false", tuple: "numbers separated by /"}.get(kind, f"a{'n' if kind is int else ''} {kind.__name__}")
             raise ValueError(f"proposer 'rgbd': {key} expects {what}, got {text!r}") from None
-    return out
+    return RGBDProposerConfig(**out)
 
 
 def _make_rgbd(arg: str | None) -> MaskProposer:
     if not arg:
         return RGBDProposer()
-    return RGBDProposer(RGBDProposerConfig(**rgbd_settings(arg)))
+    return RGBDProposer(rgbd_config(arg))
 
 
 def _make_sam(arg: str | None) -> MaskProposer:
