@@ -1,7 +1,7 @@
 """Why a perceived map navigator misses its goal: how large it sees objects, and where the goal ranks.
 
     python benchmarks/bench_search_recognition.py [--episodes calibration|validation] [--limit 60] [--at 200]
-        [--encoder embedded-v2] [--every 10] [--json OUT.jsonl] [--isolated]
+        [--encoder embedded-v2] [--every 10] [--json OUT.jsonl] [--isolated] [--compare-proposer SPEC ...]
 
 Runs ``map-navigator`` on the development searches of ``search-v2`` (never the test episodes),
 exactly as the harness runs it (same environment settings, seeds and agent options), and measures
@@ -14,6 +14,8 @@ from the environment's ground truth, which only this script reads, never the age
 * **proposals**: on every ``--every``-th frame the navigator sees, the search agents' proposer's
   (:data:`~conceptfusion.perception.featurizer.SEARCH_PROPOSER`) recall of the objects in view (a mask with IoU >= 0.5 against the ground-truth segmentation), by the
   object's pixel count, and the goal's pixel count whenever it is in view;
+* **other proposals** (``--compare-proposer SPEC``, repeatable): the same recall, on the same
+  frames, of other proposer specs (the navigator still acts on its own), to compare settings;
 * **isolated** (``--isolated``): beside the navigator's map, a second map fused from the same
   frames in which a pixel keeps its feature only when a mask isolates its object (IoU >= 0.5 with
   the object's ground-truth segment); the goal's rank there too, to tell views that never
@@ -123,7 +125,7 @@ def isolated_features(featurizer, obs, segmentation):
 
 
 def run(episodes: str, limit: int, at: int, encoder: str | None, every: int, out=None, log=print, isolated: bool = False,
-        env_kwargs: dict | None = None) -> dict:
+        env_kwargs: dict | None = None, compare: tuple[str, ...] = ()) -> dict:
     from agents.registry import make_agent
     from conceptfusion.perception.featurizer import SEARCH_PROPOSER
     from conceptfusion.perception.masks.registry import make_proposer
@@ -138,6 +140,7 @@ def run(episodes: str, limit: int, at: int, encoder: str | None, every: int, out
                                          backend="serial", record="none"), "recognition")[:limit]
     proposer = make_proposer(SEARCH_PROPOSER)
     buckets: dict[int, list[int]] = collections.defaultdict(lambda: [0, 0, 0])
+    others = {spec: (make_proposer(spec), collections.defaultdict(lambda: [0, 0, 0])) for spec in compare}
     from sim_envs.assets.library import catalogue
 
     names = sorted(catalogue().categories)
@@ -162,6 +165,8 @@ def run(episodes: str, limit: int, at: int, encoder: str | None, every: int, out
         while True:
             if steps % every == 0:
                 _recall(proposer, obs, info["segmentation"], buckets, goal_pixels, goal_index, namer, categories)
+                for other, other_buckets in others.values():
+                    _recall(other, obs, info["segmentation"], other_buckets, [], goal_index)
             obs, _, terminated, truncated, info = env.step(agent.act(obs, None))
             steps += 1
             if iso is not None:
@@ -181,7 +186,8 @@ def run(episodes: str, limit: int, at: int, encoder: str | None, every: int, out
             out.write(json.dumps(row) + "\n")
             out.flush()
         log(f"{row['episode_id']}: success={row['success']} steps={row['steps']} at {at}: {snaps.get('at')} end: {snaps['end']}")
-    return {"rows": rows, "buckets": dict(buckets), "goal_pixels": goal_pixels}
+    return {"rows": rows, "buckets": dict(buckets), "goal_pixels": goal_pixels,
+            "compare": {spec: dict(b) for spec, (_, b) in others.items()}}
 
 
 def _isolated_map(agent, info):
@@ -237,6 +243,9 @@ def summary(result: dict, at: int) -> list[str]:
         n, hit, named = result["buckets"][b]
         lines.append(f"objects of {2 ** b}-{2 ** (b + 1) - 1} pixels: {n} in view, proposer recall@0.5 {hit / n:.2f}"
                      + (f", named right (top-1 of the library's categories) {named}/{hit} = {named / hit:.2f} of those matched" if hit else ""))
+    for spec, other in result.get("compare", {}).items():
+        lines.append(f"{spec}: proposer recall@0.5 " + ", ".join(
+            f"{2 ** b}-{2 ** (b + 1) - 1} px {other[b][1] / other[b][0]:.2f}" for b in sorted(other)))
     if result["goal_pixels"]:
         lines.append(f"goal in view: {len(result['goal_pixels'])} frames, median {statistics.median(result['goal_pixels']):.0f} pixels")
     return lines
@@ -251,6 +260,8 @@ def main(argv: list[str] | None = None) -> int:
     ap.add_argument("--every", type=int, default=10, help="proposer recall on every N-th frame")
     ap.add_argument("--json", default=None, help="also write one JSON line per search")
     ap.add_argument("--isolated", action="store_true", help="also fuse a map from isolated objects' pixels only (twice the perception)")
+    ap.add_argument("--compare-proposer", action="append", default=[], metavar="SPEC",
+                    help="also measure this proposer's recall on the same frames (repeatable)")
     ap.add_argument("--env-option", action="append", metavar="KEY=VALUE",
                     help="one of the suite's environment settings, e.g. width=320 (repeatable)")
     args = ap.parse_args(argv)
@@ -261,7 +272,7 @@ def main(argv: list[str] | None = None) -> int:
     out = open(args.json, "w") if args.json else None
     try:
         result = run(args.episodes, args.limit, args.at, args.encoder, args.every, out, isolated=args.isolated,
-                     env_kwargs=parse_env_options(args.env_option))
+                     env_kwargs=parse_env_options(args.env_option), compare=tuple(args.compare_proposer))
     finally:
         if out is not None:
             out.close()

@@ -3,6 +3,7 @@ in the map, from ground-truth boxes and the map's scores."""
 
 from __future__ import annotations
 
+import collections
 import importlib.util
 from pathlib import Path
 from types import SimpleNamespace
@@ -101,3 +102,22 @@ def test_isolated_features_keep_only_pixels_a_mask_isolates_the_object_of():
     assert np.all(feats.index_hw[2:6, 2:6] >= 0)
     kept = feats.index_hw >= 0
     assert kept.sum() == 16  # object 1, mask 1's background and unmasked pixels lose their features
+
+
+def test_compared_proposers_report_their_own_recall():
+    seg = np.full((20, 20), -1)
+    seg[2:6, 2:6] = 0     # 16 pixels
+    seg[10:18, 10:18] = 1  # 64 pixels
+    one = np.zeros((1, 20, 20), bool)
+    one[0, 10:18, 10:18] = True  # finds object 1 only
+    both = np.concatenate([one, np.zeros((1, 20, 20), bool)])
+    both[1, 2:6, 2:6] = True
+    obs = {"rgb": np.zeros((20, 20, 3), np.uint8), "depth": np.ones((20, 20), np.float32), "K": np.eye(3)}
+    compare = {}
+    for spec, masks in (("one", one), ("both", both)):
+        buckets = collections.defaultdict(lambda: [0, 0, 0])
+        search_recognition._recall(SimpleNamespace(propose=lambda rgb, depth, K, m=masks: m), obs, seg, buckets, [], 0)
+        compare[spec] = dict(buckets)
+    lines = search_recognition.summary({"rows": [], "buckets": {}, "goal_pixels": [], "compare": compare}, 200)
+    assert "one: proposer recall@0.5 16-31 px 0.00, 64-127 px 1.00" in lines
+    assert "both: proposer recall@0.5 16-31 px 1.00, 64-127 px 1.00" in lines
