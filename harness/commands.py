@@ -314,6 +314,7 @@ def cmd_list(args: argparse.Namespace) -> int:
         print(f"  {name:<16} {text}")
     print("  oracle           privileged: ground-truth segmentation with MiniLM name embeddings (agents only)")
     print("  oracle-open      privileged: ground-truth segmentation and ground-truth grounding of descriptions (agents only)")
+    print("  oracle[-open]:min_pixels=N  the same, labelling only segments of at least N pixels of a frame")
     return 0
 
 

@@ -37,7 +37,8 @@ from conceptfusion.frames import RGBDFrame
 from conceptfusion.names import unknown_name_error
 from conceptfusion.perception.features import PixelFeatures, check_mode
 from conceptfusion.perception.masks.registry import PROPOSERS, make_proposer, rgbd_config
-from conceptfusion.perception.oracle import GROUNDED_ORACLE_DIM, GROUNDED_ORACLE_MIN_SCORE, GroundedOracleFeatures, OracleFeatures
+from conceptfusion.perception.oracle import (GROUNDED_ORACLE_DIM, GROUNDED_ORACLE_MIN_SCORE, GroundedOracleFeatures, OracleFeatures,
+                                             drop_small_segments)
 from conceptfusion.perception.oracle_floor import ORACLE_TEXT_ENCODER, load_oracle_floor
 from conceptfusion.perception.pipeline import frame_features
 from conceptfusion.perception.registry import DEFAULT_ENCODER, ENCODERS, make_encoder
@@ -48,6 +49,7 @@ __all__ = [
     "ORACLE_OPEN",
     "ORACLE_OPEN_MIN_SCORE",
     "ORACLE_ENCODERS",
+    "is_oracle",
     "PerceptionSpec",
     "FrameFeaturizer",
     "PerceivedFeaturizer",
@@ -130,6 +132,30 @@ class PerceptionSpec:
         """The encoder's registry name (the spec before ``:``, lower case), or an oracle's name."""
         return self.encoder.strip().partition(":")[0].strip().lower()
 
+    @property
+    def privileged(self) -> bool:
+        """True for the oracles (``oracle``, ``oracle-open``, with or without an argument)."""
+        return self.encoder_name in ORACLE_ENCODERS
+
+    @property
+    def oracle_min_pixels(self) -> int:
+        """An oracle's ``min_pixels`` (``"oracle-open:min_pixels=20"``: segments smaller than 20
+        pixels of a frame get no feature, as if too small to recognise; 0 without the argument).
+
+        Raises:
+            ValueError: not an oracle, or an argument other than ``min_pixels=N`` with N an integer >= 0.
+        """
+        if not self.privileged:
+            raise ValueError(f"oracle_min_pixels: encoder {self.encoder!r} is not an oracle")
+        _, sep, arg = self.encoder.strip().partition(":")
+        if not sep:
+            return 0
+        key, eq, value = arg.strip().partition("=")
+        if key.strip().lower() != "min_pixels" or not eq or not value.strip().isdigit():
+            raise ValueError(f"encoder {self.encoder_name!r}: expected no argument or 'min_pixels=N' (N an integer >= 0), "
+                             f"got {self.encoder!r}")
+        return int(value)
+
     @classmethod
     def parse(cls, text: "str | PerceptionSpec", *, proposer: str = "rgbd", mode: str = "full",
               uniqueness: bool = True) -> "PerceptionSpec":
@@ -138,7 +164,7 @@ class PerceptionSpec:
 
         Raises:
             UnknownNameError: unknown encoder or proposer name (naming the nearest valid ones).
-            ValueError: ``"oracle:..."`` / ``"oracle-open:..."`` (an oracle takes no argument) or an unknown mode.
+            ValueError: an oracle's argument other than ``min_pixels=N`` (``"oracle-open:min_pixels=20"``) or an unknown mode.
             TypeError: ``text`` is not a string.
         """
         if isinstance(text, PerceptionSpec):
@@ -158,8 +184,8 @@ class PerceptionSpec:
                 err = UnknownNameError(f"{err} (a model needs a prefix: hf:{text.strip()} for Hugging Face, "
                                        f"onnx:{text.strip()} for an ONNX folder)")
             raise err
-        if self.encoder_name in ORACLE_ENCODERS and sep:
-            raise ValueError(f"encoder {self.encoder_name!r} takes no argument, got {text!r}")
+        if self.encoder_name in ORACLE_ENCODERS:
+            self.oracle_min_pixels  # a ValueError naming the argument
         prop, sep, arg = self.proposer.strip().partition(":")
         prop = prop.lower()
         if prop not in PROPOSERS:
@@ -340,21 +366,37 @@ class PerceivedFeaturizer(_EncoderBacked):
         return frame_features(frame.rgb, masks, self._encoder, uniqueness=self.uniqueness, mode=self.mode)
 
 
+def _checked_min_pixels(value) -> int:
+    if isinstance(value, bool) or not isinstance(value, int) or value < 0:
+        raise ValueError(f"min_pixels: expected an integer >= 0, got {value!r}")
+    return value
+
+
+def is_oracle(encoder: "str | PerceptionSpec") -> bool:
+    """Whether an encoder spec names an oracle (privileged ground truth), with or without its
+    argument (``"oracle-open:min_pixels=20"``); False for any other string."""
+    name = encoder.encoder_name if isinstance(encoder, PerceptionSpec) else str(encoder).strip().partition(":")[0].strip().lower()
+    return name in ORACLE_ENCODERS
+
+
 class OracleFeaturizer(_EncoderBacked):
     """Privileged features: each segment labelled with its name's text embedding.
 
     Args:
         text_encoder: embeds the names and the queries (``encode_text``, ``dim``).
         score_floor: the text-query floor (default :data:`ORACLE_MIN_SCORE`).
+        min_pixels: segments smaller than this many pixels of a frame get no feature
+            (:func:`~conceptfusion.perception.oracle.drop_small_segments`; 0: every segment).
     """
 
     privileged = True
     vocabulary: tuple[str, ...] = ()
     """No learned image side: nothing to contrast a name with."""
 
-    def __init__(self, text_encoder, *, score_floor: float | None = ORACLE_MIN_SCORE) -> None:
+    def __init__(self, text_encoder, *, score_floor: float | None = ORACLE_MIN_SCORE, min_pixels: int = 0) -> None:
         self._encoder = text_encoder
         self.score_floor = score_floor
+        self.min_pixels = _checked_min_pixels(min_pixels)
         self._features: OracleFeatures | None = None
 
     def reset(self, label_names: Mapping[int, str] | None = None,
@@ -375,7 +417,7 @@ class OracleFeaturizer(_EncoderBacked):
             raise RuntimeError("OracleFeaturizer: call reset(label_names) before features()")
         if frame.segmentation is None:
             raise ValueError("OracleFeaturizer.features: expected the frame's segmentation (privileged)")
-        return self._features(frame.segmentation)
+        return self._features(drop_small_segments(frame.segmentation, self.min_pixels))
 
 
 class _GroundingEncoder:
@@ -406,6 +448,9 @@ class GroundedOracleFeaturizer:
         dim: feature dimension (segmentation ids must be below ``dim - 1``).
         score_floor: the text-query floor (default :data:`ORACLE_OPEN_MIN_SCORE`, derived from
             the construction).
+        min_pixels: segments smaller than this many pixels of a frame get no feature, an oracle
+            that recognises perfectly only what a frame shows at least that large
+            (``"oracle-open:min_pixels=N"``; 0: every segment, however small).
     """
 
     privileged = True
@@ -414,11 +459,13 @@ class GroundedOracleFeaturizer:
     scene_dependent_text = True
     """Text embeddings are the current scene's (a mapper clears its text cache on reset)."""
 
-    def __init__(self, *, dim: int = GROUNDED_ORACLE_DIM, score_floor: float | None = ORACLE_OPEN_MIN_SCORE) -> None:
+    def __init__(self, *, dim: int = GROUNDED_ORACLE_DIM, score_floor: float | None = ORACLE_OPEN_MIN_SCORE,
+                 min_pixels: int = 0) -> None:
         if not isinstance(dim, int) or dim < 2:
             raise ValueError(f"GroundedOracleFeaturizer: dim: expected an int >= 2, got {dim!r}")
         self._dim = dim
         self.score_floor = score_floor
+        self.min_pixels = _checked_min_pixels(min_pixels)
         self._features: GroundedOracleFeatures | None = None
         self._encoder = _GroundingEncoder(self)
 
@@ -463,7 +510,7 @@ class GroundedOracleFeaturizer:
         grounding = self._grounding("features()")
         if frame.segmentation is None:
             raise ValueError("GroundedOracleFeaturizer.features: expected the frame's segmentation (privileged)")
-        return grounding(frame.segmentation)
+        return grounding(drop_small_segments(frame.segmentation, self.min_pixels))
 
 
 @functools.lru_cache(maxsize=4)
@@ -484,8 +531,8 @@ def make_featurizer(spec: "PerceptionSpec | str" = DEFAULT_ENCODER) -> FrameFeat
     """
     spec = PerceptionSpec.parse(spec)
     if spec.encoder_name == ORACLE:
-        return OracleFeaturizer(load_encoder(ORACLE_TEXT_ENCODER))
+        return OracleFeaturizer(load_encoder(ORACLE_TEXT_ENCODER), min_pixels=spec.oracle_min_pixels)
     if spec.encoder_name == ORACLE_OPEN:
-        return GroundedOracleFeaturizer()
+        return GroundedOracleFeaturizer(min_pixels=spec.oracle_min_pixels)
     return PerceivedFeaturizer(load_encoder(spec.encoder), make_proposer(spec.proposer),
                                mode=spec.mode, uniqueness=spec.uniqueness)

@@ -31,7 +31,7 @@ from conceptfusion.perception.features import PixelFeatures
 
 __all__ = [
     "OracleFeatures", "TextEmbedder", "GroundedOracleFeatures", "GROUNDED_ORACLE_DIM", "GROUNDED_ORACLE_MIN_SCORE",
-    "normalize_phrase",
+    "normalize_phrase", "drop_small_segments",
 ]
 
 GROUNDED_ORACLE_DIM = 256
@@ -55,6 +55,29 @@ class TextEmbedder(Protocol):
     def dim(self) -> int: ...
 
     def encode_text(self, texts: Sequence[str]) -> np.ndarray: ...
+
+
+def drop_small_segments(segmentation_hw, min_pixels: int) -> np.ndarray:
+    """The segmentation with every segment of fewer than ``min_pixels`` pixels set to -1 (no
+    object), so an oracle labels only what the frame shows at least that large.
+
+    Shape:
+        (H, W) int -> (H, W) int64 (a copy; ``min_pixels`` 0 or 1 keeps every segment).
+
+    Raises:
+        ValueError: ``min_pixels`` is not an integer >= 0.
+    """
+    if isinstance(min_pixels, bool) or not isinstance(min_pixels, (int, np.integer)) or min_pixels < 0:
+        raise ValueError(f"min_pixels: expected an integer >= 0, got {min_pixels!r}")
+    seg = as_array("segmentation_hw", segmentation_hw, shape=(None, None), kinds="iu").astype(np.int64)
+    if min_pixels <= 1:
+        return seg
+    valid = seg >= 0
+    counts = np.bincount(seg[valid], minlength=1)
+    small = np.zeros(seg.shape, bool)
+    small[valid] = counts[seg[valid]] < min_pixels
+    seg[small] = -1
+    return seg
 
 
 def _segment_features(segmentation_hw, palette_kd: np.ndarray, lut: np.ndarray) -> PixelFeatures:

@@ -30,7 +30,7 @@ from pathlib import Path
 import numpy as np
 
 from agents.builtin import make_mapper
-from conceptfusion.perception.featurizer import ORACLE_ENCODERS
+from conceptfusion.perception.featurizer import is_oracle
 from harness.maps.scan import SceneScan, fuse_frames, load_shipped_scene, point_labels, scan_tabletop, scene_kind, shipped_scene_ids
 from sim_envs.mujoco.scan import render_views
 
@@ -155,7 +155,7 @@ def run_query_scene(
     fmap = mapper.map
     pts = fmap.points
     gt = point_labels(pts, scan.object_boxes)
-    views = None if encoder in ORACLE_ENCODERS else _novel_views(scan, width, height)
+    views = None if is_oracle(encoder) else _novel_views(scan, width, height)
     from conceptfusion.map.query import click_query_vector
 
     ious = {m: [] for m in MODALITIES}

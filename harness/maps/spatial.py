@@ -41,7 +41,7 @@ import numpy as np
 
 from agents.builtin import make_mapper
 from agents.spatial.parser import clean_noun_phrase, make_parser
-from conceptfusion.perception.featurizer import ORACLE_ENCODERS
+from conceptfusion.perception.featurizer import is_oracle
 from conceptfusion.spatial.comparators import get_comparator
 from harness.maps.scan import SceneScan, fuse_frames, load_shipped_scene, scan_scene
 from harness.maps.spatial_questions import PER_SCENE, QUESTION_TYPES, askable, generate_questions
@@ -215,6 +215,6 @@ def score_spatial_scene(
                                 name_only_fallback=name_only_fallback)
     extras = {"questions": answered, "frames": n, "image_size": [width, height], "parser": parser,
               "assume_present": assume_present, "name_only_fallback": name_only_fallback,
-              "privileged": encoder in ORACLE_ENCODERS}
+              "privileged": is_oracle(encoder)}
     timings = {"scan_s": t_scan, "answer_s": time.perf_counter() - t0 - t_scan}
     return spatial_metrics(answered), extras, timings

@@ -28,7 +28,7 @@ from pathlib import Path
 from typing import Callable
 
 from conceptfusion.names import lookup
-from conceptfusion.perception.featurizer import ORACLE_ENCODERS, make_featurizer
+from conceptfusion.perception.featurizer import is_oracle, make_featurizer
 from harness.maps.ablation import VARIANTS, run_ablation_scene
 from harness.maps.query import run_query_scene
 from harness.maps.query_open import SCAN_SIZE as OPEN_SCAN_SIZE, open_scene_ids, run_open_query_scene
@@ -91,7 +91,7 @@ def ablation_encoder(encoder: str, world: str = "v1") -> tuple[str, str]:
     back to the shipped tower of the ``world`` (``"embedded"`` for v1, ``"embedded-v2"`` for v2)
     when it loads, else to ``"color"``.
     """
-    if encoder not in ORACLE_ENCODERS:
+    if not is_oracle(encoder):
         return encoder, ""
     tower = "embedded-v2" if world == "v2" else "embedded"
     try:

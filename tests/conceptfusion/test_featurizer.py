@@ -38,7 +38,7 @@ def test_spec_typos_name_the_nearest_without_loading():
         PerceptionSpec.parse("openai/clip-vit-base-patch32")
     with pytest.raises(UnknownNameError, match="did you mean 'rgbd'"):
         PerceptionSpec.parse("color", proposer="rgdb")
-    with pytest.raises(ValueError, match="takes no argument"):
+    with pytest.raises(ValueError, match=r"expected no argument or 'min_pixels=N'.*got 'oracle:x'"):
         PerceptionSpec.parse("oracle:x")
     with pytest.raises(ValueError, match="mode"):
         PerceptionSpec(mode="mixed")

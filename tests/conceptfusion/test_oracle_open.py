@@ -13,9 +13,9 @@ from agents.concept_map import ConceptMapper, MapperConfig, privileged_labels
 from conceptfusion.perception.encoders import ColorNameEncoder
 from conceptfusion.perception.featurizer import (
     ORACLE_OPEN, ORACLE_OPEN_MIN_SCORE, FrameFeaturizer, GroundedOracleFeaturizer, OracleFeaturizer, PerceptionSpec,
-    make_featurizer, perception_names,
+    is_oracle, make_featurizer, perception_names,
 )
-from conceptfusion.perception.oracle import GROUNDED_ORACLE_DIM, GroundedOracleFeatures, normalize_phrase
+from conceptfusion.perception.oracle import GROUNDED_ORACLE_DIM, GroundedOracleFeatures, drop_small_segments, normalize_phrase
 from conceptfusion.cameras import intrinsics_from_fovy
 from conceptfusion.synthetic import Box, orbit_poses, render_boxes
 from sim_envs.assets.library import catalogue
@@ -107,8 +107,9 @@ def test_the_spec_factory_and_protocol():
     assert ORACLE_OPEN == "oracle-open" and ORACLE_OPEN in perception_names()
     spec = PerceptionSpec.parse("oracle-open")
     assert str(spec) == "oracle-open" and spec.encoder_name == ORACLE_OPEN
-    with pytest.raises(ValueError, match="encoder 'oracle-open' takes no argument"):
-        PerceptionSpec.parse("oracle-open:x")
+    for bad in ("oracle-open:x", "oracle-open:min_pixels=-1", "oracle-open:min_pixels=2.5", "oracle-open:size=20"):
+        with pytest.raises(ValueError, match=r"encoder 'oracle-open': expected no argument or 'min_pixels=N'"):
+            PerceptionSpec.parse(bad)
     with pytest.raises(ValueError, match="did you mean 'oracle-open'"):
         PerceptionSpec.parse("oracle-opne")
     f = make_featurizer("oracle-open")
@@ -118,6 +119,38 @@ def test_the_spec_factory_and_protocol():
     assert not hasattr(f.encoder, "encode_image")  # text only: image queries are refused by their callers
     f.reset(label_phrases=PHRASES)
     assert np.array_equal(f.encoder.encode_text(["the tool"]), f.encode_text(["the tool"]))
+
+
+def test_min_pixels_leaves_segments_smaller_than_it_without_a_feature():
+    spec = PerceptionSpec.parse("oracle-open:min_pixels=5")
+    assert spec.privileged and spec.oracle_min_pixels == 5 and PerceptionSpec.parse("oracle-open").oracle_min_pixels == 0
+    assert is_oracle("oracle-open:min_pixels=5") and is_oracle("oracle") and not is_oracle("embedded-v2")
+    f = make_featurizer(spec)
+    assert f.min_pixels == 5
+    f.reset(label_phrases=PHRASES)
+    seg = np.full((6, 8), -1, np.int64)
+    seg[0:2, 0:3] = 0  # 6 pixels: kept
+    seg[4, 0:4] = 1    # 4 pixels: too small
+    seg[5, 7] = 2      # 1 pixel: too small
+    frame = _frames(_boxes([0, 1, 2]), n=1)[0]
+    frame = dataclasses.replace(frame, rgb=frame.rgb[:6, :8], depth=frame.depth[:6, :8], segmentation=seg)
+    feats = f.features(frame)
+    has = np.any(feats.dense() != 0, axis=-1)
+    assert np.array_equal(has, seg == 0)
+    every = make_featurizer("oracle-open")
+    every.reset(label_phrases=PHRASES)
+    assert np.array_equal(np.any(every.features(frame).dense() != 0, axis=-1), seg >= 0)
+    with pytest.raises(ValueError, match="min_pixels: expected an integer >= 0, got -2"):
+        GroundedOracleFeaturizer(min_pixels=-2)
+
+
+def test_drop_small_segments_counts_pixels_per_segment():
+    seg = np.array([[0, 0, 1], [0, 2, 2], [-1, 2, 3]])
+    assert np.array_equal(drop_small_segments(seg, 3), [[0, 0, -1], [0, 2, 2], [-1, 2, -1]])
+    assert np.array_equal(drop_small_segments(seg, 0), seg)
+    assert np.array_equal(drop_small_segments(np.full((2, 2), -1), 5), np.full((2, 2), -1))
+    with pytest.raises(ValueError, match="min_pixels: expected an integer >= 0, got True"):
+        drop_small_segments(seg, True)
 
 
 # -- a synthetic map: three objects on a table, rendered with their segmentation ------------------
