@@ -5,9 +5,11 @@ writes ``report.md`` plus the figures it links into one folder, every file atomi
 is built once as data (:func:`build_report`, blocks of :mod:`harness.report.document`) and
 rendered to Markdown here and to a self-contained HTML page by :mod:`harness.report.html`:
 
-- a run summary (episodes, statuses, suites, agents, encoders, total wall time);
+- a run summary (episodes, statuses, suites, agents, encoders, total wall time, and which
+  agents read ground truth a robot does not have: records with ``extras.privileged``);
 - per suite, a table of every (agent, encoder) with success and SPL and their 95% intervals,
-  the other metrics present and the wall time per episode, and a bar chart of success;
+  the other metrics present and the wall time per episode (privileged groups marked
+  "(privileged)" beside their encoder), and a bar chart of success;
 - per suite, paired comparisons of every map-equipped agent against every map-free one
   (``extras.uses_map``; when some group lacks it, every pair of groups is compared);
 - per suite, success per goal category, and per way the goal was named (v2 episodes);
@@ -122,10 +124,16 @@ class _Writer:
         self.skipped.append(f"{what}: {why}")
 
 
+def _privileged(records) -> set[tuple[str, str]]:
+    """The (agent, encoder) groups with a record that read ground truth (``extras.privileged``)."""
+    return {group_key(r)[1:] for r in records if (r.get("extras") or {}).get("privileged") is True}
+
+
 def _summary_section(records) -> list:
     statuses = Counter(r["status"] for r in records)
     walls = [float(r["timings"]["wall_s"]) for r in records if "wall_s" in (r.get("timings") or {})]
     groups = {group_key(r) for r in records}
+    privileged = sorted(_privileged(records))
     return [Heading(2, "Run summary"), Bullets((
         f"episodes: {len(records)} ({', '.join(f'{k} {v}' for k, v in sorted(statuses.items()))})",
         f"runs: {', '.join(sorted({str(r.get('run_id')) for r in records}))}",
@@ -133,15 +141,18 @@ def _summary_section(records) -> list:
         f"agents: {', '.join(sorted({g[1] for g in groups}))}",
         f"encoders: {', '.join(sorted({g[2] for g in groups}))}",
         f"total episode wall time: {_fmt_seconds(sum(walls)) if walls else 'not recorded'}",
+        "privileged (read ground truth a robot does not have): "
+        + (", ".join(f"{a} ({e})" for a, e in privileged) if privileged else "none"),
     ))]
 
 
-def _suite_table(rows, suite: str) -> Table:
+def _suite_table(rows, suite: str, privileged: set[tuple[str, str]] = frozenset()) -> Table:
     others = sorted({m for r in rows for m in r.metrics} - {"success", "spl"})
     head = ("agent", "encoder", "n", "failed/timeout", "success [95% CI]", "SPL [95% CI]", *others, "s/episode")
     body = []
     for r in rows:
-        body.append((r.agent, r.encoder, Cell(str(r.n), sort=r.n),
+        encoder = f"{r.encoder} (privileged)" if (r.agent, r.encoder) in privileged else r.encoder
+        body.append((r.agent, encoder, Cell(str(r.n), sort=r.n),
                      Cell(f"{r.n_failed}/{r.n_timeout}", sort=r.n_failed + r.n_timeout),
                      _stat_cell(r.metrics.get("success")), _stat_cell(r.metrics.get("spl")),
                      *(_stat_cell(r.metrics.get(m)) for m in others), Cell(_fmt_seconds(r.wall_s), sort=r.wall_s)))
@@ -377,7 +388,7 @@ def build_report(run_dirs_or_records, out_dir: str | os.PathLike, *,
     for suite in sorted({r.suite for r in rows}):
         suite_rows = [r for r in rows if r.suite == suite]
         suite_recs = [r for r in records if r["suite"] == suite]
-        blocks += [Heading(2, f"Suite `{suite}`"), _suite_table(suite_rows, suite)]
+        blocks += [Heading(2, f"Suite `{suite}`"), _suite_table(suite_rows, suite, _privileged(suite_recs))]
         with_success = [r for r in suite_rows if "success" in r.metrics]
         if with_success:
             labels = [f"{r.agent}\n({r.encoder})" for r in with_success]

@@ -129,3 +129,16 @@ def test_report_skips_unknown_scene(tmp_path):
     assert "floor plan of household/nope.json" in text
     assert any(n.startswith("paths_s_nav") for n in _links(text))
     assert Path(tmp_path / _links(text)[-1]).is_file()
+
+
+def test_report_marks_privileged_results(tmp_path):
+    recs = [make_record(run_id="r", suite="s", task="object_search", agent=a, encoder=e, episode_id=f"e{i}", seed=0,
+                        status="ok", metrics={"success": i % 2 == 0}, extras={"privileged": p, "uses_map": True})
+            for i in range(4) for a, e, p in (("map-navigator", "oracle-open", True), ("map-navigator", "embedded-v2", False))]
+    text = write_report(recs, tmp_path).read_text()
+    assert "- privileged (read ground truth a robot does not have): map-navigator (oracle-open)" in text
+    assert "| map-navigator | oracle-open (privileged) | 4 |" in text
+    assert "| map-navigator | embedded-v2 | 4 |" in text and "embedded-v2 (privileged)" not in text
+    plain = [make_record(run_id="r", suite="s", task="t", agent="a", encoder="e", episode_id="e0", seed=0, status="ok",
+                         metrics={"success": True})]
+    assert "- privileged (read ground truth a robot does not have): none" in write_report(plain, tmp_path / "p").read_text()
