@@ -147,14 +147,7 @@ class PerceptionSpec:
         """
         if not self.privileged:
             raise ValueError(f"oracle_min_pixels: encoder {self.encoder!r} is not an oracle")
-        _, sep, arg = self.encoder.strip().partition(":")
-        if not sep:
-            return 0
-        key, eq, value = arg.strip().partition("=")
-        if key.strip().lower() != "min_pixels" or not eq or not value.strip().isdigit():
-            raise ValueError(f"encoder {self.encoder_name!r}: expected no argument or 'min_pixels=N' (N an integer >= 0), "
-                             f"got {self.encoder!r}")
-        return int(value)
+        return _oracle_min_pixels(self.encoder)
 
     @classmethod
     def parse(cls, text: "str | PerceptionSpec", *, proposer: str = "rgbd", mode: str = "full",
@@ -184,8 +177,8 @@ class PerceptionSpec:
                 err = UnknownNameError(f"{err} (a model needs a prefix: hf:{text.strip()} for Hugging Face, "
                                        f"onnx:{text.strip()} for an ONNX folder)")
             raise err
-        if self.encoder_name in ORACLE_ENCODERS:
-            self.oracle_min_pixels  # a ValueError naming the argument
+        if self.privileged:
+            _oracle_min_pixels(text)  # a ValueError naming the argument
         prop, sep, arg = self.proposer.strip().partition(":")
         prop = prop.lower()
         if prop not in PROPOSERS:
@@ -193,6 +186,19 @@ class PerceptionSpec:
         if prop == "rgbd" and sep:
             rgbd_config(arg)  # a ValueError naming the setting
         return self
+
+
+def _oracle_min_pixels(encoder: str) -> int:
+    """``N`` of an oracle spec ``"NAME:min_pixels=N"``, 0 for a bare ``"NAME"``; a ValueError
+    naming the spec for any other argument."""
+    name, sep, arg = encoder.strip().partition(":")
+    if not sep:
+        return 0
+    key, eq, value = arg.strip().partition("=")
+    if key.strip().lower() != "min_pixels" or not eq or not value.strip().isdigit():
+        raise ValueError(f"encoder {name.strip().lower()!r}: expected no argument or 'min_pixels=N' (N an integer >= 0), "
+                         f"got {encoder!r}")
+    return int(value)
 
 
 @runtime_checkable
