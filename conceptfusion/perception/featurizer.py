@@ -38,7 +38,7 @@ from conceptfusion.names import unknown_name_error
 from conceptfusion.perception.features import PixelFeatures, check_mode
 from conceptfusion.perception.masks.registry import PROPOSERS, make_proposer, rgbd_config
 from conceptfusion.perception.oracle import (GROUNDED_ORACLE_DIM, GROUNDED_ORACLE_MIN_SCORE, GroundedOracleFeatures, OracleFeatures,
-                                             drop_small_segments)
+                                             check_min_pixels, drop_small_segments)
 from conceptfusion.perception.oracle_floor import ORACLE_TEXT_ENCODER, load_oracle_floor
 from conceptfusion.perception.pipeline import frame_features
 from conceptfusion.perception.registry import DEFAULT_ENCODER, ENCODERS, make_encoder
@@ -50,6 +50,7 @@ __all__ = [
     "ORACLE_OPEN_MIN_SCORE",
     "ORACLE_ENCODERS",
     "is_oracle",
+    "encoder_name",
     "PerceptionSpec",
     "FrameFeaturizer",
     "PerceivedFeaturizer",
@@ -130,7 +131,7 @@ class PerceptionSpec:
     @property
     def encoder_name(self) -> str:
         """The encoder's registry name (the spec before ``:``, lower case), or an oracle's name."""
-        return self.encoder.strip().partition(":")[0].strip().lower()
+        return encoder_name(self.encoder)
 
     @property
     def privileged(self) -> bool:
@@ -191,12 +192,12 @@ class PerceptionSpec:
 def _oracle_min_pixels(encoder: str) -> int:
     """``N`` of an oracle spec ``"NAME:min_pixels=N"``, 0 for a bare ``"NAME"``; a ValueError
     naming the spec for any other argument."""
-    name, sep, arg = encoder.strip().partition(":")
+    _, sep, arg = encoder.strip().partition(":")
     if not sep:
         return 0
     key, eq, value = arg.strip().partition("=")
     if key.strip().lower() != "min_pixels" or not eq or not value.strip().isdigit():
-        raise ValueError(f"encoder {name.strip().lower()!r}: expected no argument or 'min_pixels=N' (N an integer >= 0), "
+        raise ValueError(f"encoder {encoder_name(encoder)!r}: expected no argument or 'min_pixels=N' (N an integer >= 0), "
                          f"got {encoder!r}")
     return int(value)
 
@@ -372,17 +373,16 @@ class PerceivedFeaturizer(_EncoderBacked):
         return frame_features(frame.rgb, masks, self._encoder, uniqueness=self.uniqueness, mode=self.mode)
 
 
-def _checked_min_pixels(value) -> int:
-    if isinstance(value, bool) or not isinstance(value, int) or value < 0:
-        raise ValueError(f"min_pixels: expected an integer >= 0, got {value!r}")
-    return value
+def encoder_name(encoder: str) -> str:
+    """The name an encoder spec starts with: the text before ``:``, stripped, lower case
+    (``"oracle-open:min_pixels=20"`` -> ``"oracle-open"``, ``"hf:openai/clip-vit-base-patch32"`` -> ``"hf"``)."""
+    return str(encoder).strip().partition(":")[0].strip().lower()
 
 
 def is_oracle(encoder: "str | PerceptionSpec") -> bool:
     """Whether an encoder spec names an oracle (privileged ground truth), with or without its
     argument (``"oracle-open:min_pixels=20"``); False for any other string."""
-    name = encoder.encoder_name if isinstance(encoder, PerceptionSpec) else str(encoder).strip().partition(":")[0].strip().lower()
-    return name in ORACLE_ENCODERS
+    return encoder_name(encoder.encoder if isinstance(encoder, PerceptionSpec) else encoder) in ORACLE_ENCODERS
 
 
 class OracleFeaturizer(_EncoderBacked):
@@ -402,7 +402,7 @@ class OracleFeaturizer(_EncoderBacked):
     def __init__(self, text_encoder, *, score_floor: float | None = ORACLE_MIN_SCORE, min_pixels: int = 0) -> None:
         self._encoder = text_encoder
         self.score_floor = score_floor
-        self.min_pixels = _checked_min_pixels(min_pixels)
+        self.min_pixels = check_min_pixels(min_pixels)
         self._features: OracleFeatures | None = None
 
     def reset(self, label_names: Mapping[int, str] | None = None,
@@ -471,7 +471,7 @@ class GroundedOracleFeaturizer:
             raise ValueError(f"GroundedOracleFeaturizer: dim: expected an int >= 2, got {dim!r}")
         self._dim = dim
         self.score_floor = score_floor
-        self.min_pixels = _checked_min_pixels(min_pixels)
+        self.min_pixels = check_min_pixels(min_pixels)
         self._features: GroundedOracleFeatures | None = None
         self._encoder = _GroundingEncoder(self)
 

@@ -31,7 +31,7 @@ from conceptfusion.perception.features import PixelFeatures
 
 __all__ = [
     "OracleFeatures", "TextEmbedder", "GroundedOracleFeatures", "GROUNDED_ORACLE_DIM", "GROUNDED_ORACLE_MIN_SCORE",
-    "normalize_phrase", "drop_small_segments",
+    "normalize_phrase", "drop_small_segments", "check_min_pixels",
 ]
 
 GROUNDED_ORACLE_DIM = 256
@@ -57,6 +57,13 @@ class TextEmbedder(Protocol):
     def encode_text(self, texts: Sequence[str]) -> np.ndarray: ...
 
 
+def check_min_pixels(min_pixels) -> int:
+    """``min_pixels`` when it is an integer >= 0 (a bool is not); ValueError naming it otherwise."""
+    if isinstance(min_pixels, bool) or not isinstance(min_pixels, int) or min_pixels < 0:
+        raise ValueError(f"min_pixels: expected an integer >= 0, got {min_pixels!r}")
+    return min_pixels
+
+
 def drop_small_segments(segmentation_hw, min_pixels: int) -> np.ndarray:
     """The segmentation with every segment of fewer than ``min_pixels`` pixels set to -1 (no
     object), so an oracle labels only what the frame shows at least that large.
@@ -67,8 +74,7 @@ def drop_small_segments(segmentation_hw, min_pixels: int) -> np.ndarray:
     Raises:
         ValueError: ``min_pixels`` is not an integer >= 0.
     """
-    if isinstance(min_pixels, bool) or not isinstance(min_pixels, (int, np.integer)) or min_pixels < 0:
-        raise ValueError(f"min_pixels: expected an integer >= 0, got {min_pixels!r}")
+    check_min_pixels(min_pixels)
     seg = as_array("segmentation_hw", segmentation_hw, shape=(None, None), kinds="iu").astype(np.int64)
     if min_pixels <= 1:
         return seg

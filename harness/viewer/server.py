@@ -38,7 +38,7 @@ from urllib.parse import parse_qs, quote, unquote, urlsplit
 from agents.builtin import make_mapper
 from conceptfusion.errors import ConceptFusionError, HarnessError, MapFormatError, MissingFileError
 from conceptfusion.map.persistence import FORMAT_NAME as MAP_FORMAT
-from conceptfusion.perception.featurizer import ORACLE_OPEN
+from conceptfusion.perception.featurizer import ORACLE_OPEN, encoder_name
 from harness.report.paths import MAP_SUFFIX, VIDEO_SUFFIXES
 from harness.viewer.queries import DEFAULT_MAX_POINTS, MAX_IMAGE_BYTES, BadQueryError, MapQueries
 
@@ -115,7 +115,7 @@ class ViewerServer:
     def __init__(self, map_path: str | os.PathLike, *, encoder: str = "embedded", host: str = "127.0.0.1",
                  port: int = 0, max_points: int = DEFAULT_MAX_POINTS) -> None:
         check_loopback(host)
-        if isinstance(encoder, str) and encoder.strip().partition(":")[0].strip().lower() == ORACLE_OPEN:
+        if isinstance(encoder, str) and encoder_name(encoder) == ORACLE_OPEN:
             raise HarnessError(f"--encoder {ORACLE_OPEN}: grounds descriptions in a live scene's ground truth (each "
                                "object's phrases), which a saved map does not keep, so the viewer cannot answer its queries")
         if isinstance(port, bool) or not isinstance(port, int) or not 0 <= port <= 65535:
