@@ -41,6 +41,7 @@ INSTANCE_ROLES: dict[str, tuple[str, ...]] = {
     "tower_val": ("train", "val"),
     "calibration": ("train",),
     "evaluation": ("train", "val", "test"),
+    "sealed": ("train", "test"),
 }
 """Seed role -> instance roles a scene of that role may use."""
 

@@ -49,6 +49,7 @@ POOL_ROLES: dict[str, tuple[str, ...]] = {
     "tower_val": ("train", "val"),
     "calibration": ("train",),
     "evaluation": ("train", "val", "test"),
+    "sealed": ("train", "test"),
 }
 """Seed role -> instance roles a scene of that role draws from."""
 TABLE = Table(center=(0.0, 0.0, 0.375), size=(1.2, 0.8, 0.05), material="wood")
