@@ -19,11 +19,13 @@ Either way the mapper is built by :func:`make_mapper` from a
 name               task                 map         what
 =================  ===================  ==========  ======================================
 map-pusher         tabletop_rearrange   yes         scan -> map -> median -> push, re-check
+twin-pusher        tabletop_rearrange   no (twin)   same scan, each frame perceived alone, same pushes
 frame-pusher       tabletop_rearrange   no (2.5D)   same, from the current frame only
 random-pusher      tabletop_rearrange   no          random pushes
 oracle-pusher      tabletop_rearrange   privileged  ground-truth poses (solvability check)
 oracle-searcher    object_search        privileged  ground-truth floor plan and goal (solvability check)
 map-navigator      object_search        yes         map, query, OMPL plan, pure pursuit
+twin-navigator     object_search        no (twin)   same grid, frontiers, planner; current frame only
 frame-searcher     object_search        no (2.5D)   current frame only, reactive wandering
 random-walker      object_search        no          random velocities
 =================  ===================  ==========  ======================================
@@ -40,12 +42,15 @@ __all__ = ["make_mapper"]
 
 def make_mapper(
     perception: PerceptionSpec | str | FrameFeaturizer = "embedded", proposer: str = "rgbd", *, persistent: bool = True,
-    setting: str = "tabletop",
+    setting: str = "tabletop", semantic_views: int = 0,
 ) -> ConceptMapper:
     """A :class:`ConceptMapper` for a perception spec (see the module docstring), with the
     featurizer's score floor for ``setting`` (``"tabletop"``, ``"household"`` or ``"search"``, see
     :func:`~conceptfusion.perception.featurizer.score_floor_for`: the v2 tower ships a floor
     calibrated on apartments).
+
+    ``semantic_views``: 0 fuses concept vectors (the map agents); ``k`` keeps each of the last
+    ``k`` frames' apart (the matched map-free twins, see :class:`~agents.concept_map.MapperConfig`).
 
     ``perception`` is an encoder spec string (``proposer`` then names the mask proposer), a
     :class:`~conceptfusion.perception.featurizer.PerceptionSpec`, or a featurizer already built.
@@ -58,7 +63,13 @@ def make_mapper(
         featurizer = make_featurizer(spec)
     else:
         featurizer = perception
-    return ConceptMapper(featurizer, MapperConfig(persistent=persistent, min_score=score_floor_for(featurizer, setting)))
+    return ConceptMapper(featurizer, MapperConfig(persistent=persistent, semantic_views=semantic_views,
+                                                  min_score=score_floor_for(featurizer, setting)))
+
+
+PUSHER_TWIN_VIEWS = 64
+"""Frames the pusher twin keeps apart: more than any scan has (it starts a new map every step, so
+it holds exactly the step's scan and fixed frame)."""
 
 
 def _map_pusher(encoder: str = "embedded", proposer: str = "rgbd", scan: bool = True, assume_present: bool = True,
@@ -69,6 +80,15 @@ def _map_pusher(encoder: str = "embedded", proposer: str = "rgbd", scan: bool = 
                                                                   identify=identify, track_pushed=track_pushed), use_scan=scan)
 
 
+def _twin_pusher(encoder: str = "embedded", proposer: str = "rgbd", assume_present: bool = True, name_only_fallback: bool = True,
+                 identify: bool = True, track_pushed: float = 0.0):
+    from agents.pusher import MapPusher, PusherConfig
+
+    return MapPusher(make_mapper(encoder, proposer, semantic_views=PUSHER_TWIN_VIEWS),
+                     PusherConfig(assume_present=assume_present, name_only_fallback=name_only_fallback, identify=identify,
+                                  track_pushed=track_pushed), use_scan=True)
+
+
 def _frame_pusher(encoder: str = "embedded", proposer: str = "rgbd", assume_present: bool = True, name_only_fallback: bool = True,
                   identify: bool = True):
     from agents.pusher import MapPusher, PusherConfig
@@ -77,15 +97,29 @@ def _frame_pusher(encoder: str = "embedded", proposer: str = "rgbd", assume_pres
                      PusherConfig(assume_present=assume_present, name_only_fallback=name_only_fallback, identify=identify), use_scan=False)
 
 
+def _navigator(encoder: str, proposer: str, seed: int, semantic_views: int, **settings):
+    from agents.navigator import MapNavigator, NavigatorConfig
+
+    return MapNavigator(make_mapper(encoder, proposer, setting="search", semantic_views=semantic_views), NavigatorConfig(**settings),
+                        seed=seed)
+
+
 def _map_navigator(encoder: str = "embedded", proposer: str = SEARCH_PROPOSER, seed: int = 0, integrate_every: int = 1,
                    keyframe_move: float = 0.3, keyframe_turn_deg: float = 40.0, goal_tolerance: float = 0.05,
                    stuck_steps: int = 0, explore_range: float = 0.0, recheck_faded: bool = False, presume_after: int = 200):
-    from agents.navigator import MapNavigator, NavigatorConfig
+    return _navigator(encoder, proposer, seed, 0, integrate_every=integrate_every, keyframe_move=keyframe_move,
+                      keyframe_turn_deg=keyframe_turn_deg, goal_tolerance=goal_tolerance, stuck_steps=stuck_steps,
+                      explore_range=explore_range, recheck_faded=recheck_faded, presume_after=presume_after)
 
-    config = NavigatorConfig(integrate_every=integrate_every, keyframe_move=keyframe_move, keyframe_turn_deg=keyframe_turn_deg,
-                             goal_tolerance=goal_tolerance, stuck_steps=stuck_steps, explore_range=explore_range,
-                             recheck_faded=recheck_faded, presume_after=presume_after)
-    return MapNavigator(make_mapper(encoder, proposer, setting="search"), config, seed=seed)
+
+def _twin_navigator(encoder: str = "embedded", proposer: str = SEARCH_PROPOSER, seed: int = 0, integrate_every: int = 1,
+                    keyframe_move: float = 0.3, keyframe_turn_deg: float = 40.0, goal_tolerance: float = 0.05,
+                    stuck_steps: int = 0, explore_range: float = 0.0, recheck_faded: bool = False, presume_after: int = 200,
+                    hold_sighting: bool = True):
+    return _navigator(encoder, proposer, seed, 1, integrate_every=integrate_every, keyframe_move=keyframe_move,
+                      keyframe_turn_deg=keyframe_turn_deg, goal_tolerance=goal_tolerance, stuck_steps=stuck_steps,
+                      explore_range=explore_range, recheck_faded=recheck_faded, presume_after=presume_after,
+                      hold_sighting=hold_sighting)
 
 
 def _frame_searcher(encoder: str = "embedded", proposer: str = SEARCH_PROPOSER):
@@ -121,6 +155,12 @@ register_agent(AgentSpec(
     {**_PERCEPTION, "scan": Option(bool, True), **_PRESENCE, "track_pushed": Option.at_least(float, 0.0, 0.0)}, uses_map=True,
 ))
 register_agent(AgentSpec(
+    "twin-pusher", _twin_pusher, "tabletop_rearrange",
+    "matched map-free twin of map-pusher: the same scan and fixed frames, each perceived alone (the best single frame "
+    "answers), the same push planner and rules; geometry fused, concept vectors not",
+    {**_PERCEPTION, **_PRESENCE, "track_pushed": Option.at_least(float, 0.0, 0.0)}, twin_of="map-pusher",
+))
+register_agent(AgentSpec(
     "frame-pusher", _frame_pusher, "tabletop_rearrange",
     "single-frame (2.5D) pusher: the same perception on the current camera frame only, no map",
     {**_PERCEPTION, **_PRESENCE},
@@ -137,14 +177,24 @@ register_agent(AgentSpec(
     "oracle-searcher", "agents.oracle_search:OracleSearchAgent", "object_search",
     "privileged scripted searcher on the ground-truth floor plan and goal box (proves episodes solvable)", {}, privileged=True,
 ))
+_NAVIGATOR_OPTIONS = {
+    **_SEARCH_PERCEPTION, "seed": _SEED, "integrate_every": Option.at_least(int, 1, 1),
+    "keyframe_move": Option.at_least(float, 0.3, 0.0), "keyframe_turn_deg": Option.at_least(float, 40.0, 0.0),
+    "goal_tolerance": Option.at_least(float, 0.05, 0.01), "stuck_steps": Option.at_least(int, 0, 0),
+    "explore_range": Option.at_least(float, 0.0, 0.0), "recheck_faded": Option(bool, False),
+    "presume_after": Option.at_least(int, 200, 0)}
+"""The options of the map navigator and its twin (:class:`~agents.navigator.NavigatorConfig`)."""
+
 register_agent(AgentSpec(
     "map-navigator", _map_navigator, "object_search",
     "ConceptFusion map built online; goal query, OMPL path to the goal or a frontier, pure pursuit, stop",
-    {**_SEARCH_PERCEPTION, "seed": _SEED, "integrate_every": Option.at_least(int, 1, 1),
-     "keyframe_move": Option.at_least(float, 0.3, 0.0), "keyframe_turn_deg": Option.at_least(float, 40.0, 0.0),
-     "goal_tolerance": Option.at_least(float, 0.05, 0.01), "stuck_steps": Option.at_least(int, 0, 0),
-     "explore_range": Option.at_least(float, 0.0, 0.0), "recheck_faded": Option(bool, False),
-     "presume_after": Option.at_least(int, 200, 0)}, uses_map=True,
+    dict(_NAVIGATOR_OPTIONS), uses_map=True,
+))
+register_agent(AgentSpec(
+    "twin-navigator", _twin_navigator, "object_search",
+    "matched map-free twin of map-navigator (CLIP-on-Wheels style): the same occupancy grid, frontiers, OMPL planner, "
+    "stop and presume rules, with recognition on the current frame only and the goal's last sighting kept",
+    {**_NAVIGATOR_OPTIONS, "hold_sighting": Option(bool, True)}, twin_of="map-navigator",
 ))
 register_agent(AgentSpec(
     "frame-searcher", _frame_searcher, "object_search",

@@ -16,16 +16,25 @@ simulator's segmentation, passed explicitly, and the labels' names or phrases at
 
 A single-frame (2.5D) agent uses the same mapper with ``persistent=False``: every frame
 replaces the map, so answers come from the current view only.
+
+A matched map-free twin uses it with ``semantic_views=k``: the map keeps every frame's geometry
+(what occupancy grids, frontiers, table extents and push corridors read) but no concept vectors;
+each of the last ``k`` frames keeps its own, and a query is answered on each of those frames
+alone, the best single-frame answer winning. The twin sees the same views, explores and plans on
+the same geometry and decides by the same rules; it differs from the map agent only in that its
+semantics are not fused across views.
 """
 
 from __future__ import annotations
 
 import dataclasses
+from collections import deque
 from dataclasses import dataclass
 from types import MappingProxyType
 from typing import Iterable, Mapping, Sequence
 
 import numpy as np
+from scipy.spatial import cKDTree
 
 from conceptfusion.frames import RGBDFrame
 from conceptfusion.map.fusion import PointFusionMap
@@ -53,11 +62,23 @@ class MapperConfig:
     drop_support: bool = True
     """Regions lose the horizontal surface they stand on when they have bled into it (the table
     rim around a mug's base; see :func:`conceptfusion.map.regions.drop_support`)."""
+    semantic_views: int = 0
+    """0: concept vectors are fused into the map (ConceptFusion). ``k >= 1``: the matched map-free
+    twin (see the module docstring): the map fuses geometry only, each of the last ``k``
+    integrated frames keeps its own concept vectors, and answers come from the best single frame,
+    carried over to the map's points within ``1.5 * voxel_size`` of that frame's (so regions,
+    scores and point indices refer to :attr:`ConceptMapper.map` as in the fused case). The search
+    twin keeps 1 (its current frame); the pusher twin keeps its scan (it starts a new map every
+    step)."""
     min_score: float | None = None
     """Also require the best region's median cosine score to reach this (None: no such test).
     Generic negatives do not reject a near-miss ("brown bottle" for "the black bottle" scores
     0.70 with MiniLM text features, "object" 0.35), so an encoder-specific floor does: exact
     names score >= 0.9 with oracle features."""
+
+    def __post_init__(self) -> None:
+        if isinstance(self.semantic_views, bool) or not isinstance(self.semantic_views, int) or self.semantic_views < 0:
+            raise ValueError(f"semantic_views: expected an integer >= 0, got {self.semantic_views!r}")
 
 
 def frame_from_observation(observation: Mapping | RGBDFrame, segmentation: np.ndarray | None = None) -> RGBDFrame:
@@ -127,6 +148,8 @@ class ConceptMapper:
         self.map = PointFusionMap(featurizer.dim, max_depth=config.max_depth)
         self.frames = 0
         self._answers: dict[str, QueryResult] = {}
+        self._views: deque[PointFusionMap] = deque(maxlen=max(1, config.semantic_views))
+        """Single-frame maps of the last ``semantic_views`` frames (the twin's semantics; empty when fused)."""
 
     @property
     def privileged(self) -> bool:
@@ -147,6 +170,7 @@ class ConceptMapper:
         self.map = PointFusionMap(self.featurizer.dim, max_depth=self.config.max_depth)
         self.frames = 0
         self._answers.clear()
+        self._views.clear()
         if getattr(self.featurizer, "scene_dependent_text", False):
             self._text_cache.clear()
             self._negatives = None
@@ -204,9 +228,16 @@ class ConceptMapper:
         if self._vocabulary_kd is None:
             self._vocabulary_kd = np.asarray(self.featurizer.encode_text(list(self.vocabulary)), np.float32)
         q = self.text_vector(text)
-        both = self.map.scores_many(np.concatenate([q[None], self.negatives()]))
+        view = self.map
+        if self.config.semantic_views and self._views:
+            margins, view = self._view_margins(q, candidates)
+        else:
+            margins = vocabulary_margins(self.map, q, self._vocabulary_kd, candidates)
+        both = view.scores_many(np.concatenate([q[None], self.negatives()]))
         scores, relev = both[0], relevancy(both[0], both[1:])
-        margins = vocabulary_margins(self.map, q, self._vocabulary_kd, candidates)
+        if view is not self.map:
+            near, nearest = self._near_view(view)
+            scores, relev = (np.where(near, v[np.maximum(nearest, 0)], np.nan).astype(np.float32) for v in (scores, relev))
         order = np.argsort(-margins, kind="stable")
         regions = [Region(points_n3=candidates[i].points_n3, scores_n=scores[candidates[i].indices_n],
                           indices_n=candidates[i].indices_n) for i in order]
@@ -215,6 +246,31 @@ class ConceptMapper:
                           {"identified": "vocabulary", "margins": [float(margins[i]) for i in order]})
         self._answers[text] = res
         return res
+
+    def _view_margins(self, q: np.ndarray, candidates: Sequence[Region]) -> tuple[np.ndarray, PointFusionMap]:
+        """:func:`~conceptfusion.map.query.vocabulary_margins` of map regions ``candidates`` on
+        each kept frame alone (a candidate's points there: the frame's points within ``1.5 *
+        voxel_size`` of it), and the frame whose best candidate has the highest margin.
+
+        Shape: -> (R,) float64 (``-inf`` for a candidate the frame does not show), the frame's map."""
+        r = 1.5 * self.config.voxel_size
+        sizes = [len(c.points_n3) for c in candidates]
+        labels = np.repeat(np.arange(len(candidates)), sizes)
+        tree = cKDTree(np.concatenate([c.points_n3 for c in candidates])) if sum(sizes) else None
+        best: tuple[np.ndarray, PointFusionMap] | None = None
+        for view in self._views:
+            margins = np.full(len(candidates), -np.inf)
+            if tree is not None and len(view):
+                d, j = tree.query(view.points, distance_upper_bound=r)
+                lab = np.where(np.isfinite(d), labels[np.minimum(j, len(labels) - 1)], -1)
+                shown = [i for i in range(len(candidates)) if np.any(lab == i)]
+                if shown:
+                    parts = [Region(points_n3=view.points[lab == i], scores_n=np.zeros(0, np.float32), indices_n=np.flatnonzero(lab == i))
+                             for i in shown]
+                    margins[shown] = vocabulary_margins(view, q, self._vocabulary_kd, parts)
+            if best is None or margins.max(initial=-np.inf) > best[0].max(initial=-np.inf):
+                best = (margins, view)
+        return best
 
     def integrate(self, observation: Mapping | RGBDFrame, *, segmentation: np.ndarray | None = None) -> None:
         """Fuse one posed RGB-D frame.
@@ -230,8 +286,79 @@ class ConceptMapper:
         feats = self.featurizer.features(frame)
         if not self.config.persistent:
             self.map = PointFusionMap(self.featurizer.dim, max_depth=self.config.max_depth)
+        if self.config.semantic_views:
+            view = PointFusionMap(self.featurizer.dim, max_depth=self.config.max_depth)
+            view.integrate(frame.rgb, frame.depth, frame.K, frame.cam_to_world, feats)
+            self._views.append(view)
+            feats = None
         self.map.integrate(frame.rgb, frame.depth, frame.K, frame.cam_to_world, feats)
         self.frames += 1
+
+    @property
+    def described_n(self) -> np.ndarray:
+        """Which map points carry concept vectors: fused ones (``map.has_feature``), or for a twin
+        (``semantic_views``) the points near a kept frame's featured points. Shape: (N,) bool."""
+        if not self.config.semantic_views:
+            return self.map.has_feature
+        out = np.zeros(len(self.map), bool)
+        for view in self._views:
+            near, _ = self._near_view(view, view.has_feature)
+            out |= near
+        return out
+
+    def _near_view(self, view: PointFusionMap, mask_m: np.ndarray | None = None) -> tuple[np.ndarray, np.ndarray]:
+        """Map points within ``1.5 * voxel_size`` of ``view``'s points (those of ``mask_m``), and
+        the index of the nearest such view point for each. Shape: (N,) bool, (N,) int64 (-1 where
+        not near)."""
+        r = 1.5 * self.config.voxel_size
+        pts = self.map.points
+        vpts = view.points if mask_m is None else view.points[mask_m]
+        vidx = np.arange(len(view)) if mask_m is None else np.flatnonzero(mask_m)
+        near = np.zeros(len(pts), bool)
+        nearest = np.full(len(pts), -1, np.int64)
+        if len(vpts) == 0 or len(pts) == 0:
+            return near, nearest
+        lo, hi = vpts.min(axis=0) - r, vpts.max(axis=0) + r
+        box = np.flatnonzero(np.all((pts >= lo) & (pts <= hi), axis=1))
+        if box.size:
+            d, j = cKDTree(vpts).query(pts[box], distance_upper_bound=r)
+            ok = np.isfinite(d)
+            near[box[ok]] = True
+            nearest[box[ok]] = vidx[j[ok]]
+        return near, nearest
+
+    def _to_map(self, view: PointFusionMap, res: QueryResult) -> QueryResult:
+        """A single frame's answer carried over to the map's points (see ``semantic_views``)."""
+        near, nearest = self._near_view(view)
+
+        def carry(values_v: np.ndarray) -> np.ndarray:
+            out = np.full(len(self.map), np.nan, np.float32)
+            out[near] = values_v[nearest[near]]
+            return out
+
+        regions = []
+        r = 1.5 * self.config.voxel_size
+        for reg in res.regions:
+            mine = np.zeros(len(view), bool)
+            mine[reg.indices_n] = True
+            idx = np.flatnonzero(near & mine[np.maximum(nearest, 0)])
+            if idx.size == 0:  # no map point near it (cannot happen for a fused frame; kept safe)
+                d, _ = cKDTree(reg.points_n3).query(self.map.points, distance_upper_bound=r)
+                idx = np.flatnonzero(np.isfinite(d))
+            if idx.size:
+                regions.append(Region(points_n3=self.map.points[idx], scores_n=carry(res.scores_n)[idx], indices_n=idx))
+        found = res.found and bool(regions)
+        return QueryResult(found, regions if found else [], carry(res.scores_n), carry(res.relative_n), carry(res.relevancy_n),
+                           res.reason if found or not res.found else "no map point near the frame's answer", dict(res.extras))
+
+    def _best_view(self, answer_on) -> QueryResult:
+        """``answer_on(view) -> (QueryResult, key)`` on every kept frame alone; the answer of the
+        frame with the highest key (found answers first), carried over to the map."""
+        if not self._views:
+            return answer_on(self.map)[0]
+        answers = [(answer_on(view), view) for view in self._views]
+        (res, _), view = max(answers, key=lambda a: (a[0][0].found, a[0][1]))
+        return self._to_map(view, res)
 
     def locate(self, text: str, *, floor: bool = True, contrast: bool = True) -> QueryResult:
         """Where ``text`` is in the map: regions (best first), or ``found=False`` with a reason.
@@ -279,10 +406,22 @@ class ConceptMapper:
         return answer
 
     def _locate(self, text: str, floor: bool = True, contrast: bool = True) -> QueryResult:
+        if not self.config.semantic_views:
+            return self._locate_on(self.map, text, floor, contrast)
+
+        def answer_on(view):
+            res = self._locate_on(view, text, floor, contrast)
+            if res.found:
+                return res, float(np.median(res.best.scores_n))
+            return res, float(np.nanmax(res.scores_n)) if np.isfinite(res.scores_n).any() else -np.inf
+
+        return self._best_view(answer_on)
+
+    def _locate_on(self, map_: PointFusionMap, text: str, floor: bool, contrast: bool) -> QueryResult:
         c = self.config
         negatives = self.negatives() if contrast else np.zeros((0, self.featurizer.dim), np.float32)
         res = locate(
-            self.map, self.text_vector(text), negatives,
+            map_, self.text_vector(text), negatives,
             relevancy_threshold=c.relevancy_threshold, voxel_size=c.voxel_size, min_points=c.min_points,
             support=SupportTest() if c.drop_support else None,
         )

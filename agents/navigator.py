@@ -125,6 +125,13 @@ class NavigatorConfig:
     the 100 v1 calibration searches of the regression floors fall from 85 to 79 (goals found
     between steps 220 and 249 lost to a guess)."""
 
+    hold_sighting: bool = False
+    """Keep heading for the goal's last sighting (its footprint when an answer last found it)
+    while the current answer does not find it. The map-free twin's one memory of a detection, as
+    a detector-plus-planner searcher keeps its target once localised: its answers come from the
+    current frame only (``MapperConfig.semantic_views=1``), so without it the goal would be
+    forgotten as soon as it leaves the view. Off for the map navigator, whose map remembers."""
+
     def __post_init__(self) -> None:
         if not (isinstance(self.goal_tolerance, (int, float)) and not isinstance(self.goal_tolerance, bool)
                 and 0 < self.goal_tolerance < math.inf):
@@ -133,8 +140,9 @@ class NavigatorConfig:
             value = getattr(self, name)
             if isinstance(value, bool) or not isinstance(value, int) or value < 0:
                 raise ValueError(f"{name}: expected an integer >= 0, got {value!r}")
-        if not isinstance(self.recheck_faded, bool):
-            raise ValueError(f"recheck_faded: expected a bool, got {self.recheck_faded!r}")
+        for name in ("recheck_faded", "hold_sighting"):
+            if not isinstance(getattr(self, name), bool):
+                raise ValueError(f"{name}: expected a bool, got {getattr(self, name)!r}")
         if not (isinstance(self.reject_radius, (int, float)) and not isinstance(self.reject_radius, bool)
                 and 0 < self.reject_radius < math.inf):
             raise ValueError(f"reject_radius: expected a finite number > 0, got {self.reject_radius!r}")
@@ -325,8 +333,11 @@ class MapNavigator:
                 return search_action(stop=True)
         grid, inflated = self._grids(start)
         target, self._to_goal = None, False
-        if found.found:
-            footprint = self._seen = found.best.points_n3[:, :2]
+        held = not found.found and self.config.hold_sighting and self._seen is not None
+        if found.found or held:
+            footprint = self._seen = found.best.points_n3[:, :2] if found.found else self._seen
+            if held:
+                self._note(f"'{goal_text}' not in view; heading for where it was last seen")
             near = self._within_reach(footprint, start)
             if near is not None:
                 self._note(f"'{goal_text}' is within reach ({near:.2f} m): stop")

@@ -177,7 +177,7 @@ class MapPusher:
         Shape: ``above_n`` (N,) bool over the map's points -> list of Region."""
         m = self.mapper
         pts = m.map.points
-        return connected_regions(pts, above_n & m.map.has_feature, np.zeros(len(pts), np.float32),
+        return connected_regions(pts, above_n & m.described_n, np.zeros(len(pts), np.float32),
                                  voxel_size=m.config.voxel_size, min_points=m.config.min_points)
 
     def _corridor_clear(self, start, direction, length, half_width, others_xy) -> bool:

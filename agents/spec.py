@@ -115,8 +115,14 @@ class AgentSpec:
     """Builds a ConceptFusion map (map-equipped) or not (map-free baseline)."""
     privileged: bool = False
     """Reads ground truth (oracle policies)."""
+    twin_of: str | None = None
+    """The map-equipped agent this map-free agent is the matched twin of: the same views,
+    exploration, planner and decision rules, differing only in memory (no concept vectors fused
+    across views). Reports compare each map agent with its twin first."""
 
     def __post_init__(self) -> None:
+        if self.twin_of is not None and self.uses_map:
+            raise ValueError(f"agent {self.name!r}: a matched twin (twin_of={self.twin_of!r}) is map-free; got uses_map=True")
         object.__setattr__(self, "kwargs", {k: _as_option(k, v) for k, v in dict(self.kwargs).items()})
 
     def defaults(self) -> dict[str, Any]:

@@ -114,8 +114,12 @@ def room_floor_seeds(config: RoomFloorConfig, split=None) -> list[int]:
     """The apartment seeds of a calibration: ``calibration`` seeds ``seed_offset ..`` ``seed_offset + scenes - 1``."""
     from sim_envs.scenes.splits import splits
 
+    from sim_envs.scenes.sealed import refuse_sealed
+
     sp = splits() if split is None else split
-    return sp.seeds_of("calibration", config.seed_offset + config.scenes)[config.seed_offset:]
+    seeds = sp.seeds_of("calibration", config.seed_offset + config.scenes)[config.seed_offset:]
+    refuse_sealed(seeds, "python -m tower_training.room_floor")
+    return seeds
 
 
 def apartment_query_scores(seed: int, featurizer, vocabulary, config: RoomFloorConfig, rng: np.random.Generator) -> dict:

@@ -279,6 +279,7 @@ def calibrate_score_floor_v2(config: FloorConfigV2 = FloorConfigV2(), *, encoder
     from conceptfusion.perception.masks.registry import make_proposer
     from sim_envs.assets.library import catalogue
     from sim_envs.scenes.splits import splits
+    from sim_envs.scenes.sealed import refuse_sealed
     from tower_training.library_views import arrange_table, pool_for_seed_role
 
     featurizer = make_featurizer("embedded") if encoder is None else PerceivedFeaturizer(encoder, make_proposer("rgbd"))
@@ -286,6 +287,7 @@ def calibrate_score_floor_v2(config: FloorConfigV2 = FloorConfigV2(), *, encoder
     vocab = sorted(cat.categories)
     pool = pool_for_seed_role(split, "calibration")
     seeds = split.seeds_of("calibration", config.scenes)
+    refuse_sealed(seeds, "python -m tower_training.score_floor")
     half = len(seeds) // 2
     per_split: dict[str, list[dict]] = {"calibration": [], "validation": []}
     for k, seed in enumerate(seeds):

@@ -63,8 +63,12 @@ class DataConfigV2:
 
     def seeds(self, which: str, split: Splits) -> list[int]:
         """The scene seeds of one set (``"train"``, ``"val"``, ``"test"``)."""
+        from sim_envs.scenes.sealed import refuse_sealed
+
         n = {"train": self.train_scenes, "val": self.val_scenes, "test": self.test_scenes}[which]
-        return split.seeds_of(SETS[which], n)
+        seeds = split.seeds_of(SETS[which], n)
+        refuse_sealed(seeds, "tower_training")
+        return seeds
 
 
 @dataclass(frozen=True)
@@ -92,7 +96,10 @@ class RoomDataConfig:
         """The apartment seeds; each must lie in the range of ``role``."""
         from sim_envs.scenes.splits import SplitError
 
+        from sim_envs.scenes.sealed import refuse_sealed
+
         seeds = list(range(self.seed0, self.seed0 + self.scenes))
+        refuse_sealed(seeds, "tower_training")
         bad = [s for s in seeds if split.seed_role(s) != self.role]
         if bad:
             raise SplitError(f"RoomDataConfig: seeds {bad[0]}..{bad[-1]} lie outside the {self.role} range "

@@ -41,9 +41,11 @@ def calibration_queries(args: tuple[str, str, int, int, int, bool]) -> list[dict
     """``(scene file, encoder, frames, width, height, drop_support)`` -> the scene's query entries
     without the floor, with ``regions``."""
     from harness.maps.query_open import score_open_query_scene
+    from sim_envs.scenes.sealed import refuse_sealed
     from sim_envs.scenes.format import load_scene
 
     path, encoder, frames, width, height, drop_support = args
+    refuse_sealed(path, "python -m harness.maps.query_open_develop")
     _, extras, _ = score_open_query_scene(load_scene(path), encoder, frames=frames, width=width, height=height,
                                           floor=False, all_regions=True, drop_support=drop_support)
     return extras["queries"]

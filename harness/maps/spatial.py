@@ -27,7 +27,10 @@ itself is the privileged oracle.
 max(0.1 m, 20% of d_gt)); refused or wrong parses, not found or undecided answers are wrong.
 The parse is right when it is the expected call or an equivalent one (``under(a, b)`` is
 ``onTopOf(b, a)``, ``isToTheLeft(a, b)`` is ``isToTheRight(b, a)``), comparing arguments after
-:func:`agents.spatial.parser.clean_noun_phrase`. Metrics: ``accuracy`` (end to end),
+:func:`agents.spatial.parser.clean_noun_phrase`. Chance references beside them, on the same
+questions: ``chance_always_yes`` (every yes/no question answered yes, every distance wrong) and
+``chance_random`` (the expected accuracy of a fair coin on the yes/no questions, every distance
+wrong). Metrics: ``accuracy`` (end to end),
 ``accuracy_parsed`` (over the questions parsed right), ``parse_rate``, ``parse_fail_rate``
 (refused), ``notfound_rate`` (over the questions parsed right), ``accuracy_fresh`` /
 ``accuracy_seen`` (fresh vs common templates), ``acc_<comparator>`` and ``n_<comparator>``.
@@ -187,6 +190,9 @@ def spatial_metrics(answered: list[dict]) -> dict:
     metrics["notfound_rate"] = _mean([not q["found"] for q in parsed_right])
     metrics["accuracy_fresh"] = _mean([q["correct"] for q in answered if q["fresh"]])
     metrics["accuracy_seen"] = _mean([q["correct"] for q in answered if not q["fresh"]])
+    yes_no = [q["gt"] for q in answered if q["type"] != "howFar"]
+    metrics["chance_always_yes"] = sum(bool(g) for g in yes_no) / len(answered) if answered else None
+    metrics["chance_random"] = 0.5 * len(yes_no) / len(answered) if answered else None
     return metrics
 
 

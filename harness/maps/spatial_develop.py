@@ -28,9 +28,11 @@ def answer_calibration_scene(args: tuple[str, str, str, bool]) -> tuple[str, str
     """``(scene file, method, encoder, assume)`` -> the same with ``(comparator, correct)`` per question,
     scored as the suite scores a scene (:func:`~harness.maps.spatial.score_spatial_scene`, its defaults)."""
     from harness.maps.spatial import score_spatial_scene
+    from sim_envs.scenes.sealed import refuse_sealed
     from sim_envs.scenes.format import load_scene
 
     path, method, encoder, assume = args
+    refuse_sealed(path, "python -m harness.maps.spatial_develop")
     _, extras, _ = score_spatial_scene(load_scene(path), method, encoder, assume_present=assume, name_only_fallback=assume)
     return path, method, assume, [(q["type"], bool(q["correct"])) for q in extras["questions"]]
 

@@ -10,8 +10,9 @@ rendered to Markdown here and to a self-contained HTML page by :mod:`harness.rep
 - per suite, a table of every (agent, encoder) with success and SPL and their 95% intervals,
   the other metrics present and the wall time per episode (privileged groups marked
   "(privileged)" beside their encoder), and a bar chart of success;
-- per suite, paired comparisons of every map-equipped agent against every map-free one
-  (``extras.uses_map``; when some group lacks it, every pair of groups is compared);
+- per suite, paired comparisons: first each map-equipped agent against its matched map-free twin
+  (``extras.twin_of``), then against every other map-free one (``extras.uses_map``; when some
+  group lacks it, every pair of groups is compared);
 - per suite, success per goal category, and per way the goal was named (v2 episodes);
 - per suite run with several seeds (``--seeds``), each agent's success over seeds with its
   between-seed spread (std and min-max of the per-seed rates), and every pair of agents whose
@@ -193,21 +194,58 @@ def _uses_map(records) -> dict[tuple[str, str], bool | None]:
     return out
 
 
+def _twins(records) -> dict[tuple[str, str], tuple[str, str]]:
+    """(twin agent, encoder) -> (the map agent it is the matched twin of, same encoder), for the
+    groups whose records name one (``extras.twin_of``)."""
+    out = {}
+    for r in records:
+        _, agent, enc = group_key(r)
+        of = (r.get("extras") or {}).get("twin_of")
+        if isinstance(of, str) and of:
+            out[(agent, enc)] = (of, enc)
+    return out
+
+
+def _twin_section(records, suite: str, w: _Writer) -> list:
+    """Each map agent against its matched map-free twin (the suite's first table): the value of
+    fused semantics, everything else equal. Empty when no twin ran beside its map agent."""
+    flags = _uses_map(records)
+    matched = sorted((m, t) for t, m in _twins(records).items() if m in flags)
+    if not matched:
+        return []
+    return [Heading(3, "Map agent against its matched map-free twin"),
+            Paragraph("The twin sees the same views, explores, plans and decides by the same rules and keeps the same "
+                      "geometry; its concept vectors are not fused across views (each frame is perceived alone). The "
+                      "difference is the value of the ConceptFusion map itself.")] + _pairs_table(records, suite, matched, w,
+                                                                                                 name=f"twins-{suite}")
+
+
 def _comparisons(records, suite: str, w: _Writer) -> list:
+    """Paired comparisons of map-equipped agents against the map-free ones other than their twin
+    (:func:`_twin_section`): the weak and random references."""
     flags = _uses_map(records)
     groups = sorted(flags)
+    twins = {t: m for t, m in _twins(records).items() if m in flags}
+    blocks: list = []
     if all(isinstance(f, bool) for f in flags.values()):
-        pairs = [(a, b) for a in groups if flags[a] for b in groups if not flags[b]]
-        basis = "map-equipped vs map-free agents (extras.uses_map)"
+        pairs = [(a, b) for a in groups if flags[a] for b in groups if not flags[b] and twins.get(b) != a]
+        basis = ("map-equipped agents against the weak and random references" if twins
+                 else "map-equipped vs map-free agents (extras.uses_map)")
     else:
         pairs = [(a, b) for i, a in enumerate(groups) for b in groups[i + 1:]]
         basis = "every pair of agents (extras.uses_map not recorded for all)"
     if not pairs:
         w.skip(f"paired comparisons, suite {suite}", "no pair of agents to compare " + f"({basis})")
-        return []
+        return blocks
     if len(pairs) > _MAX_PAIRS:
         w.skip(f"paired comparisons, suite {suite}", f"{len(pairs) - _MAX_PAIRS} of {len(pairs)} pairs left out")
         pairs = pairs[:_MAX_PAIRS]
+    return blocks + [Heading(3, f"Paired comparisons: {basis}")] + _pairs_table(records, suite, pairs, w, name=f"pairs-{suite}")
+
+
+def _pairs_table(records, suite: str, pairs, w: _Writer, *, name: str) -> list:
+    """A table of paired comparisons of (agent, encoder) groups, with how they were tested; empty
+    when the records hold no comparable metric."""
     metrics = [m for m in ("success", "spl", "accuracy", "macc", "fmiou", "text_miou")
                if any(m in (r.get("metrics") or {}) for r in records)]
     if not metrics:
@@ -228,9 +266,8 @@ def _comparisons(records, suite: str, w: _Writer) -> list:
                          Cell(f"{res.mean_diff:+.2f} [{res.ci_low:+.2f}, {res.ci_high:+.2f}]", sort=res.mean_diff),
                          Cell(disc, sort=(res.a_only - res.b_only) if res.binary else math.nan),
                          Cell(f"{res.p_value:.3g}", sort=res.p_value)))
-    return [Heading(3, f"Paired comparisons: {basis}"),
-            Paragraph("Episodes paired by suite, episode id and seed; p: exact McNemar for rates, Wilcoxon "
-                      "signed-rank otherwise."), Table(head, body, name=f"pairs-{suite}")]
+    return [Paragraph("Episodes paired by suite, episode id and seed; p: exact McNemar for rates, Wilcoxon "
+                      "signed-rank otherwise."), Table(head, body, name=name)]
 
 
 def _seed_spread_section(records, suite: str) -> list:
@@ -388,7 +425,8 @@ def build_report(run_dirs_or_records, out_dir: str | os.PathLike, *,
     for suite in sorted({r.suite for r in rows}):
         suite_rows = [r for r in rows if r.suite == suite]
         suite_recs = [r for r in records if r["suite"] == suite]
-        blocks += [Heading(2, f"Suite `{suite}`"), _suite_table(suite_rows, suite, _privileged(suite_recs))]
+        blocks += [Heading(2, f"Suite `{suite}`"), *_twin_section(suite_recs, suite, w),
+                   _suite_table(suite_rows, suite, _privileged(suite_recs))]
         with_success = [r for r in suite_rows if "success" in r.metrics]
         if with_success:
             labels = [f"{r.agent}\n({r.encoder})" for r in with_success]

@@ -8,7 +8,13 @@ evaluation suite runs (:data:`DEVELOPMENT_EPISODES`):
 - ``validation``: tables and apartments on ``tower_val`` seeds whose every target or goal is a
   VAL instance, a held-out instance of a trained category or a validation category
   (``scenes/validation-v2/``, for both): the open-world side of the evaluation episodes without
-  their test objects.
+  their test objects;
+- ``dev2``: the first evaluation episodes (``scenes/tabletop-v2/``, ``scenes/household-v2/``),
+  which earlier choices were read on; a second development set since the sealed test set
+  (``scenes/sealed-v2/``) took their role.
+
+No development run may read the sealed test set: :func:`development_suite` refuses any sealed
+episode (:func:`~sim_envs.scenes.sealed.refuse_sealed`).
 
 This runs a suite's agents over one set with the suite's environment settings and default
 perception, appending one record per episode to ``OUT/results.jsonl`` (an interrupted run resumes
@@ -43,19 +49,23 @@ from conceptfusion.errors import HarnessError
 from harness.runner.results import latest_records, record_key
 from harness.runner.run import RunConfig, episode_jobs, run_missing_jobs
 from harness.runner.suites import SCENES_ROOT, Suite, get_suite, suite_over
+from sim_envs.scenes.episodes import load_episodes
+from sim_envs.scenes.sealed import refuse_sealed
 
 __all__ = ["DEVELOPMENT_EPISODES", "SET_SUFFIX", "development_suite", "develop", "parse_env_options", "main"]
 
 DEVELOPMENT_EPISODES: dict[str, dict[str, str]] = {
     "search-v2": {"calibration": "calibration-v2/search-episodes-v2.jsonl",
-                  "validation": "validation-v2/search-episodes-v2.jsonl"},
+                  "validation": "validation-v2/search-episodes-v2.jsonl",
+                  "dev2": "household-v2/episodes-v2.jsonl"},
     "rearrange-v2": {"calibration": "calibration-v2/rearrange-episodes-v2.jsonl",
-                     "validation": "validation-v2/rearrange-episodes-v2.jsonl"},
+                     "validation": "validation-v2/rearrange-episodes-v2.jsonl",
+                     "dev2": "tabletop-v2/episodes-v2.jsonl"},
 }
 """Suite -> set -> its development episodes (relative to ``scenes/``): same generators as the
 suite's episodes, calibration or ``tower_val`` seeds only."""
 
-SET_SUFFIX = {"calibration": "develop", "validation": "validation"}
+SET_SUFFIX = {"calibration": "develop", "validation": "validation", "dev2": "dev2"}
 """Set -> the suffix of the development suite's name (``rearrange-v2-validation``)."""
 
 
@@ -74,7 +84,10 @@ def development_suite(name: str, env_kwargs: dict | None = None, episodes: str =
         raise HarnessError(f"--suite: expected a suite with development episodes ({', '.join(DEVELOPMENT_EPISODES)}), got {name!r}")
     if episodes not in DEVELOPMENT_EPISODES[name]:
         raise HarnessError(f"--episodes: expected one of {', '.join(DEVELOPMENT_EPISODES[name])} for {name}, got {episodes!r}")
-    suite = suite_over(get_suite(name), f"{name}-{SET_SUFFIX[episodes]}", SCENES_ROOT / DEVELOPMENT_EPISODES[name][episodes])
+    path = SCENES_ROOT / DEVELOPMENT_EPISODES[name][episodes]
+    refuse_sealed(path, "python -m harness.runner.develop")
+    refuse_sealed(load_episodes(path).episodes, "python -m harness.runner.develop")
+    suite = suite_over(get_suite(name), f"{name}-{SET_SUFFIX[episodes]}", path)
     if env_kwargs:
         accepted = _env_keywords(suite.task)
         unknown = sorted(set(env_kwargs) - accepted)
@@ -144,7 +157,8 @@ def main(argv: list[str] | None = None) -> int:
     parser.add_argument("--agent-option", action="append", metavar="KEY=VALUE", help="agent option, repeatable")
     parser.add_argument("--encoder", default=None, help="perception (default: the suite's)")
     parser.add_argument("--episodes", default="calibration", choices=tuple(SET_SUFFIX),
-                        help="development set: calibration (trained instances) or validation (VAL instances)")
+                        help="development set: calibration (trained instances), validation (VAL instances) or dev2 (the first evaluation "
+                             "episodes)")
     parser.add_argument("--env-option", action="append", metavar="KEY=VALUE",
                         help="environment setting over the suite's (e.g. width=320), repeatable")
     parser.add_argument("--limit", type=int, default=None, help="first N episodes")

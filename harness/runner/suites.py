@@ -4,12 +4,19 @@ Episode suites roll agents through environment episodes (:mod:`harness.runner.ta
 
 * ``rearrange``: the shipped tabletop episodes (``scenes/tabletop/episodes-v1.jsonl``), the
   paper's "push X to the left/right of the line";
-* ``rearrange-v2``: rearrangement on the v2 tabletops filled from the object library
-  (``scenes/tabletop-v2/episodes-v2.jsonl``, evaluation seeds; goals named by name, synonym,
-  attribute or function; not a default suite);
+* ``rearrange-v2``: rearrangement on the v2 tabletops filled from the object library, on the
+  sealed test set (``scenes/sealed-v2/rearrange-episodes-v2.jsonl``, 160 episodes; goals named by
+  name, synonym, attribute or function);
 * ``search``: the shipped household object-search episodes (``scenes/household/episodes-v1.jsonl``);
-* ``search-v2``: object search in the v2 apartments filled from the object library
-  (``scenes/household-v2/episodes-v2.jsonl``; not a default suite).
+* ``search-v2``: object search in the v2 apartments filled from the object library, on the sealed
+  test set (``scenes/sealed-v2/search-episodes-v2.jsonl``, 150 episodes).
+
+The v2 suites' agents come in matched pairs: each map-equipped agent beside its map-free twin
+(``twin-pusher``, ``twin-navigator``: the same views, exploration, planner and rules, no concept
+vectors fused across views), then the weak reactive baselines and the random references. Their
+episodes are the sealed test set (:mod:`sim_envs.scenes.sealed`): checked against its manifest
+before any episode runs; the first evaluation episodes (``scenes/tabletop-v2/``,
+``scenes/household-v2/``) are a development set now (:mod:`harness.runner.develop`, ``dev2``).
 
 Map suites score ConceptFusion maps against simulator ground truth (:mod:`harness.maps.suites`):
 
@@ -29,8 +36,8 @@ random agents to a ceiling), run in CI. Floors, ceilings and each agent's episod
 set here: they are derived by :mod:`harness.runner.floors` from recorded calibration runs over
 other episodes of the same generators (``calibration_file``) and read from :data:`FLOORS_FILE`.
 
-Every episode suite runs :func:`suite_episodes`: the episodes of its file minus those on scenes the
-split file reserves (:mod:`sim_envs.scenes.splits`: the shipped scenes that chose or measured the
+Every episode suite runs :func:`suite_episodes`: the episodes of its file (a sealed file verified
+against its manifest first) minus those on scenes the split file reserves (:mod:`sim_envs.scenes.splits`: the shipped scenes that chose or measured the
 v1 tower's score floor); ``limit`` and the per-agent counts take the first episodes of what is left.
 """
 
@@ -45,9 +52,10 @@ import json
 from conceptfusion.errors import HarnessError
 from conceptfusion.names import lookup
 from sim_envs.scenes.episodes import SCENES_ROOT, Episode, load_episodes
+from sim_envs.scenes.sealed import SEALED_FOLDER, is_sealed_file, verify_sealed
 from sim_envs.scenes.splits import splits
 
-__all__ = ["Suite", "SUITES", "get_suite", "DEFAULT_SUITES", "REARRANGE_V2_ENV", "SEARCH_V2_LIMIT", "suite_encoder", "suite_episodes", "FLOORS_FILE",
+__all__ = ["Suite", "SUITES", "get_suite", "DEFAULT_SUITES", "REARRANGE_V2_ENV", "SEARCH_V2_LIMIT", "FRAME_SEARCHER_LIMIT", "suite_encoder", "suite_episodes", "FLOORS_FILE",
            "calibrated_bounds", "suite_over"]
 
 FLOORS_FILE = Path(__file__).resolve().parents[1] / "data" / "floors" / "floors.json"
@@ -133,9 +141,14 @@ against 20 at 160x120 (17 gained, 5 lost); on the first 90 calibration searches 
 (the default proposals at 320x240, which stop at 77-pixel regions: validation 21, calibration 42)."""
 
 SEARCH_V2_LIMIT = 40
-"""Episodes ``search-v2`` runs unless ``--limit`` says otherwise: the first 40 of its 120, ten per
-way of naming the goal (name, synonym, attribute, function, in file order), so that the default
-comparison fits its time; ``--limit 120`` runs them all."""
+"""Episodes ``search-v2`` runs unless ``--limit`` says otherwise: the first 40 of its 150 (goals
+named by name, synonym, attribute, function in turn), so that the default comparison fits its
+time; ``--limit 150`` runs them all (the headline figures)."""
+
+FRAME_SEARCHER_LIMIT = 20
+"""Episodes the weak reactive ``frame-searcher`` runs in ``search-v2`` unless ``--limit`` says
+otherwise: the slowest agent (it segments every frame) and a reference, not the headline
+comparison (which is the map navigator against its twin)."""
 
 SUITES: dict[str, Suite] = {
     s.name: s
@@ -149,8 +162,8 @@ SUITES: dict[str, Suite] = {
         Suite(
             "rearrange-v2", "episodes",
             "tabletop rearrangement on library tabletops (evaluation seeds): goals named by name, synonym, attribute or function",
-            task="tabletop_rearrange", episodes_file=SCENES_ROOT / "tabletop-v2" / "episodes-v2.jsonl",
-            agents=("map-pusher", "frame-pusher", "random-pusher"),
+            task="tabletop_rearrange", episodes_file=SEALED_FOLDER / "rearrange-episodes-v2.jsonl",
+            agents=("map-pusher", "twin-pusher", "frame-pusher", "random-pusher"),
             env_kwargs=dict(REARRANGE_V2_ENV), default_encoder="embedded-v2",
         ),
         Suite(
@@ -162,9 +175,10 @@ SUITES: dict[str, Suite] = {
         Suite(
             "search-v2", "episodes",
             "object search in library-filled apartments (evaluation seeds): goals named by name, synonym, attribute or function",
-            task="object_search", episodes_file=SCENES_ROOT / "household-v2" / "episodes-v2.jsonl",
-            agents=("map-navigator", "frame-searcher", "random-walker"),
+            task="object_search", episodes_file=SEALED_FOLDER / "search-episodes-v2.jsonl",
+            agents=("map-navigator", "twin-navigator", "frame-searcher", "random-walker"),
             env_kwargs=dict(SEARCH_V2_ENV), default_encoder="embedded-v2", limit=SEARCH_V2_LIMIT,
+            agent_limits={"frame-searcher": FRAME_SEARCHER_LIMIT},
         ),
         Suite("query", "maps", "text, image and click query localisation over fused tabletop maps (3D mIoU, detection accuracy)"),
         Suite("query-open", "maps",
@@ -236,7 +250,10 @@ def suite_episodes(suite: Suite) -> list[Episode]:
     if suite.episodes_file is None:
         raise HarnessError(f"suite {suite.name!r} has no episodes file (a {suite.kind!r} suite)")
     split = splits()
-    return [e for e in load_episodes(suite.episodes_file).episodes if not split.is_reserved_scene(e.scene)]
+    episodes = load_episodes(suite.episodes_file).episodes
+    if is_sealed_file(suite.episodes_file):
+        verify_sealed(suite.episodes_file, {e.scene for e in episodes})
+    return [e for e in episodes if not split.is_reserved_scene(e.scene)]
 
 
 def get_suite(name: str) -> Suite:

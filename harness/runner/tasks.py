@@ -274,6 +274,8 @@ def run_episode(job: EpisodeJob) -> dict:
         metrics, timings, category, extras = TASK_RUNNERS[job.task](job, agent, recorder)
         spec = AGENTS.get(job.agent)
         extras["uses_map"] = bool(spec.uses_map) if spec else None
+        if spec is not None and spec.twin_of:
+            extras["twin_of"] = spec.twin_of
         extras["privileged"] = bool(getattr(agent, "privileged", False))
     except SystemExit as exc:  # sys.exit() in an agent ends the episode, not the run
         status = "failed"

@@ -14,7 +14,7 @@ from sim_envs.scenes.splits import splits
 def test_development_episodes_are_calibration_or_validation_seeds_and_no_suite_runs_them(name, which):
     suite = development_suite(name, episodes=which)
     episodes = suite_episodes(suite)
-    role = {"calibration": "calibration", "validation": "tower_val"}[which]
+    role = {"calibration": "calibration", "validation": "tower_val", "dev2": "evaluation"}[which]
     assert episodes and {splits().seed_role(e.scene_seed) for e in episodes} == {role}
     assert suite.env_kwargs == SUITES[name].env_kwargs and suite.agents == SUITES[name].agents
     scenes = {e.scene for e in episodes}
@@ -26,7 +26,7 @@ def test_development_episodes_are_calibration_or_validation_seeds_and_no_suite_r
 def test_unknown_development_suite_is_refused_naming_the_known_ones():
     with pytest.raises(HarnessError, match="search-v2"):
         development_suite("rearrange")  # v1: none
-    with pytest.raises(HarnessError, match="--episodes: expected one of calibration, validation for search-v2, got 'test'"):
+    with pytest.raises(HarnessError, match="--episodes: expected one of calibration, validation, dev2 for search-v2, got 'test'"):
         development_suite("search-v2", episodes="test")
 
 

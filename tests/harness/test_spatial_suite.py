@@ -122,14 +122,16 @@ def test_parse_outcome_accepts_the_expected_call_or_its_mirror():
 
 
 def test_metrics_split_parse_errors_from_answer_errors():
-    def q(kind, parse, correct, found=True, fresh=False):
-        return {"type": kind, "parse": parse, "correct": correct, "found": found, "fresh": fresh}
+    def q(kind, parse, correct, found=True, fresh=False, gt=1.0):
+        return {"type": kind, "parse": parse, "correct": correct, "found": found, "fresh": fresh, "gt": gt}
 
     m = spatial_metrics([q("howFar", "exact", True), q("howFar", "refused", False, found=False, fresh=True),
-                         q("under", "equivalent", False, found=False), q("under", "wrong", False, fresh=True)])
+                         q("under", "equivalent", False, found=False, gt=True), q("under", "wrong", False, fresh=True, gt=False)])
     assert m["accuracy"] == 0.25 and m["accuracy_parsed"] == 0.5 and m["parse_rate"] == 0.5 and m["parse_fail_rate"] == 0.25
     assert m["notfound_rate"] == 0.5 and m["accuracy_fresh"] == 0.0 and m["accuracy_seen"] == 0.5
     assert m["acc_howFar"] == 0.5 and m["n_under"] == 2 and m["acc_isBigger"] is None and m["n_questions"] == 4
+    # chance references on the same questions: one of the two yes/no answers is yes; distances count wrong
+    assert m["chance_always_yes"] == 0.25 and m["chance_random"] == 0.25
 
 
 @pytest.fixture(scope="module")

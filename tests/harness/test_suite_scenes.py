@@ -44,9 +44,12 @@ def test_no_evaluation_suite_uses_a_reserved_or_calibration_scene(name):
     ids = {sid for sid, _ in scenes}
     assert not ids & RESERVED, f"{name}: reserved scenes {sorted(ids & RESERVED)}"
     assert not ids & FLOOR_CALIBRATION, f"{name}: floor calibration scenes {sorted(ids & FLOOR_CALIBRATION)}"
-    # v2 scenes come from evaluation seeds only; v1 seeds (0-9999) lie outside every seed range
+    # v2 scenes come from evaluation seeds only (the agent suites from the sealed test set's);
+    # v1 seeds (0-9999) lie outside every seed range
     roles = {splits().seed_role(seed) for _, seed in scenes if seed is not None}
-    assert roles <= {None, "evaluation"}, f"{name}: scene seeds of roles {roles}"
+    assert roles <= {None, "evaluation", "sealed"}, f"{name}: scene seeds of roles {roles}"
+    if name in ("search-v2", "rearrange-v2"):
+        assert roles == {"sealed"}, f"{name}: scene seeds of roles {roles}"
 
 
 def test_map_suites_are_all_covered_and_take_the_first_unreserved_scenes():
@@ -85,7 +88,9 @@ def test_the_default_comparison_is_the_v2_world():
     for name in DEFAULT_SUITES:
         scenes = _suite_scenes(name)
         assert scenes and all("-v2-" in sid for sid, _ in scenes), name
-        assert {splits().seed_role(seed) for _, seed in scenes} == {"evaluation"}, name
+        # the map suites on evaluation seeds, the agent suites on the sealed test set
+        want = "sealed" if get_suite(name).kind == "episodes" else "evaluation"
+        assert {splits().seed_role(seed) for _, seed in scenes} == {want}, name
 
 
 def test_v2_calibration_search_data_regenerates_and_stays_out_of_every_suite():

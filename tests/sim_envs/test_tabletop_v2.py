@@ -58,6 +58,7 @@ def test_descriptions_are_unique_and_deterministic():
 # ------------------------------------------------------------------------------------ generator
 SCENES = Path(__file__).resolve().parents[2] / "scenes"
 V2 = SCENES / "tabletop-v2" / "episodes-v2.jsonl"
+SEALED = SCENES / "sealed-v2" / "rearrange-episodes-v2.jsonl"
 EVAL_LO, EVAL_HI = splits().seeds["evaluation"]
 
 
@@ -153,13 +154,13 @@ def test_oracle_solves_v2_episodes_on_mujoco_and_the_suite_runs_them():
     from harness.runner.tasks import EpisodeJob, run_episode
 
     suite = get_suite("rearrange-v2")
-    assert suite.episodes_file == V2 and suite.task == "tabletop_rearrange" and "rearrange-v2" in DEFAULT_SUITES
-    eps = load_episodes(V2)
+    assert suite.episodes_file == SEALED and suite.task == "tabletop_rearrange" and "rearrange-v2" in DEFAULT_SUITES
+    eps = load_episodes(SEALED)
     rec = run_episode(EpisodeJob("t", "rearrange-v2", "tabletop_rearrange", "oracle-pusher", {}, eps.episodes[0], 0, {"width": 32, "height": 24}))
     assert rec["status"] == "ok", rec.get("error")
     assert rec["metrics"]["success"]
     pair = next(i for i, e in enumerate(eps.episodes) if len(e.goals) == 2)
-    env = gym.make("cf/TabletopRearrange-v0", episodes=str(V2), width=32, height=24).unwrapped
+    env = gym.make("cf/TabletopRearrange-v0", episodes=str(SEALED), width=32, height=24).unwrapped
     try:
         obs, info = env.reset(seed=pair, options={"episode_index": pair})
         agent, done = OraclePushAgent(), False
