@@ -8,6 +8,8 @@ to develop and choose agent settings (and perception) on, never to report.
 - ``calibration-v2/search-episodes-v2.jsonl``: 6 object-search episodes per apartment, drawn as
   the shipped ``search-v2`` ones (goals named in turn by name, synonym, attribute, function),
   from another generator seed;
+- ``calibration-v2/chain-episodes-v2.jsonl``: one multi-goal search (chains of 2, 3 and 4 goals
+  in turn, :mod:`sim_envs.scenes.chain_episodes`) per apartment;
 - ``calibration-v2/tabletop-v2-<seed>.json`` and ``calibration-v2/rearrange-episodes-v2.jsonl``:
   :data:`NUM_TABLE_EPISODES` rearrangement episodes drawn as the shipped ``rearrange-v2`` ones
   (:func:`~sim_envs.scenes.tabletop_v2_episodes.generate_tabletop_v2_episodes`, one table each,
@@ -25,11 +27,12 @@ from __future__ import annotations
 import sys
 
 from scenes.shipped import generator_main
+from sim_envs.scenes.chain_episodes import chain_file_text
 from sim_envs.scenes.search_episodes_v2 import search_episode_files
 from sim_envs.scenes.splits import splits
 
 __all__ = ["FOLDER", "SEARCH_FILE", "REARRANGE_FILE", "NUM_APARTMENTS", "SEED_OFFSET", "GENERATOR_SEED", "NUM_TABLE_EPISODES",
-           "TABLE_SEED_OFFSET", "TABLE_GENERATOR_SEED", "apartment_seeds", "table_seeds", "search_files", "table_files", "build_files",
+           "TABLE_SEED_OFFSET", "TABLE_GENERATOR_SEED", "CHAIN_FILE", "CHAIN_GENERATOR_SEED", "chain_files", "apartment_seeds", "table_seeds", "search_files", "table_files", "build_files",
            "main"]
 
 FOLDER = "calibration-v2"
@@ -46,6 +49,8 @@ TABLE_SEED_OFFSET = 300
 TABLE_SEEDS = 1500
 """Calibration seeds the table episodes may draw from (a table with no reachable target is skipped)."""
 TABLE_GENERATOR_SEED = 7103
+CHAIN_FILE = f"{FOLDER}/chain-episodes-v2.jsonl"
+CHAIN_GENERATOR_SEED = 7106
 
 
 def apartment_seeds() -> list[int]:
@@ -74,9 +79,17 @@ def search_files() -> dict[str, str]:
                                 id_prefix="search-v2-cal")
 
 
+def chain_files(search: dict[str, str]) -> dict[str, str]:
+    """The chain episode file (``CHAIN_FILE`` -> text), one chain per apartment of ``search``
+    (:func:`search_files`' output)."""
+    apartments = {rel: text for rel, text in search.items() if rel.endswith(".json")}
+    return {CHAIN_FILE: chain_file_text(apartments, per_scene=1, generator_seed=CHAIN_GENERATOR_SEED, id_prefix="chain-v2-cal")}
+
+
 def build_files() -> dict[str, str]:
-    """Relative path under ``scenes/`` -> file text: every apartment and table, and both episode files."""
-    return {**search_files(), **table_files()}
+    """Relative path under ``scenes/`` -> file text: every apartment and table, and the three episode files."""
+    search = search_files()
+    return {**search, **chain_files(search), **table_files()}
 
 
 def main(argv: list[str] | None = None) -> int:

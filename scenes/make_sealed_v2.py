@@ -11,7 +11,9 @@ instance, a held-out instance of a trained category or an instance of a held-out
 - ``sealed-v2/household-v2-<seed>.json``: :data:`NUM_APARTMENTS` apartments;
 - ``sealed-v2/search-episodes-v2.jsonl``: 6 object-search episodes per apartment (150);
 - ``sealed-v2/tabletop-v2-<seed>.json`` and ``sealed-v2/rearrange-episodes-v2.jsonl``:
-  :data:`NUM_TABLE_EPISODES` rearrangement episodes, one table each.
+  :data:`NUM_TABLE_EPISODES` rearrangement episodes, one table each;
+- ``sealed-v2/chain-episodes-v2.jsonl``: :data:`NUM_CHAINS` multi-goal searches (chains of 2, 3
+  and 4 goals in turn, :mod:`sim_envs.scenes.chain_episodes`) in the first apartments, two each.
 
 Sizes: a success rate near one half over 150 episodes has a 95% interval of about +-0.08 (Wilson).
 ``sealed-v2/MANIFEST.json`` records every file's and every episode's SHA-256
@@ -27,11 +29,12 @@ from __future__ import annotations
 import sys
 
 from scenes.shipped import generator_main
+from sim_envs.scenes.chain_episodes import chain_file_text
 from sim_envs.scenes.sealed import MANIFEST_NAME, SEALED_FOLDER_NAME, manifest_text
 from sim_envs.scenes.search_episodes_v2 import search_episode_files
 from sim_envs.scenes.splits import splits
 
-__all__ = ["FOLDER", "SEARCH_FILE", "REARRANGE_FILE", "NUM_APARTMENTS", "NUM_TABLE_EPISODES", "TABLE_SEED_OFFSET", "TABLE_SEEDS",
+__all__ = ["FOLDER", "SEARCH_FILE", "REARRANGE_FILE", "CHAIN_FILE", "NUM_CHAINS", "chain_file", "NUM_APARTMENTS", "NUM_TABLE_EPISODES", "TABLE_SEED_OFFSET", "TABLE_SEEDS",
            "SEARCH_GENERATOR_SEED", "TABLE_GENERATOR_SEED", "GOAL_GROUPS", "apartment_seeds", "table_seeds", "build_files", "main"]
 
 FOLDER = SEALED_FOLDER_NAME
@@ -46,6 +49,9 @@ TABLE_SEEDS = 3000
 """``sealed`` seeds the table episodes may draw from (a table with no reachable target is skipped)."""
 SEARCH_GENERATOR_SEED = 9401
 TABLE_GENERATOR_SEED = 9402
+CHAIN_FILE = f"{FOLDER}/chain-episodes-v2.jsonl"
+NUM_CHAINS = 30
+CHAIN_GENERATOR_SEED = 9403
 GOAL_GROUPS = ("seen", "held_out_instance", "held_out_category")
 """Split groups a goal may come from: every group but ``validation``."""
 
@@ -69,8 +75,21 @@ def build_files() -> dict[str, str]:
                                  id_prefix="search-v2-sealed", goal_groups=GOAL_GROUPS)
     files.update(episode_files(TABLE_GENERATOR_SEED, NUM_TABLE_EPISODES, table_seeds(), folder=FOLDER, episode_file=REARRANGE_FILE,
                                id_prefix="rearrange-v2-sealed", goal_groups=GOAL_GROUPS))
-    files[f"{FOLDER}/{MANIFEST_NAME}"] = manifest_text(files, episode_files=(SEARCH_FILE, REARRANGE_FILE))
+    files[CHAIN_FILE] = chain_file(files)
+    files[f"{FOLDER}/{MANIFEST_NAME}"] = manifest_text(files, episode_files=(SEARCH_FILE, REARRANGE_FILE, CHAIN_FILE))
     return files
+
+
+def chain_file(files: dict[str, str]) -> str:
+    """The chain episode file's text, drawn in the first ``NUM_CHAINS // 2`` apartments of ``files``, two each."""
+    apartments = {f"{FOLDER}/household-v2-{seed}.json": files[f"{FOLDER}/household-v2-{seed}.json"]
+                  for seed in apartment_seeds()[: NUM_CHAINS // 2]}
+    text = chain_file_text(apartments, per_scene=2, generator_seed=CHAIN_GENERATOR_SEED, id_prefix="chain-v2-sealed",
+                           goal_groups=GOAL_GROUPS)
+    drawn = text.count("\n") - 1
+    if drawn != NUM_CHAINS:
+        raise RuntimeError(f"expected {NUM_CHAINS} chains, the generator drew {drawn}")
+    return text
 
 
 def main(argv: list[str] | None = None) -> int:

@@ -25,7 +25,7 @@ from sim_envs.scenes.floorplan import occupancy_grid
 from sim_envs.scenes.format import Scene, load_scene
 from sim_envs.scenes.splits import SPLIT_GROUPS, object_group
 
-__all__ = ["generate_search_episodes", "default_search_episodes", "DEFAULT_SEARCH_FILE", "room_of"]
+__all__ = ["generate_search_episodes", "default_search_episodes", "DEFAULT_SEARCH_FILE", "room_of", "goal_mask"]
 
 DEFAULT_SEARCH_FILE = SCENES_ROOT / "household" / "episodes-v1.jsonl"
 """The shipped object-search episodes."""
@@ -39,7 +39,10 @@ def room_of(scene: Scene, xy) -> str | None:
     return None
 
 
-def _goal_mask(occ, lo, hi, radius: float) -> np.ndarray:
+def goal_mask(occ, lo, hi, radius: float) -> np.ndarray:
+    """Cells of an occupancy grid within ``radius`` (m) of a footprint ``lo``-``hi``: the goal's success region.
+
+    Shape: ``lo``, ``hi`` (2,) -> (H, W) bool over ``occ``'s cells."""
     cx, cy = occ.centres()
     dx = np.maximum(np.maximum(lo[0] - cx, 0), cx - hi[0])
     dy = np.maximum(np.maximum(lo[1] - cy, 0), cy - hi[1])
@@ -109,7 +112,7 @@ def generate_search_episodes(
                     continue
             goal_room = room_of(scene, obj.position[:2])
             lo, hi = obj.footprint()
-            mask = _goal_mask(occ, lo, hi, success_distance)
+            mask = goal_mask(occ, lo, hi, success_distance)
             for _ in range(40):
                 r, c = starts[int(rng.integers(len(starts)))]
                 xy = (float(cx[r, c]), float(cy[r, c]))
