@@ -108,8 +108,8 @@ class FrameSearcher:
         pose = np.asarray(observation["base_pose"], np.float64)
         if not self._started:
             self.mapper.reset(**privileged_labels(self.mapper, info))
-            self._goal = str(observation["goal"])
             self._started = True
+        self._goal = str(observation["goal"])  # a multi-goal search reveals its goals one at a time
         self.mapper.integrate(observation, segmentation=(info or {}).get("segmentation") if self.privileged else None)
         self._steps += 1
         obstacles = self._obstacles(observation)

@@ -115,11 +115,11 @@ def _map_navigator(encoder: str = "embedded", proposer: str = SEARCH_PROPOSER, s
 def _twin_navigator(encoder: str = "embedded", proposer: str = SEARCH_PROPOSER, seed: int = 0, integrate_every: int = 1,
                     keyframe_move: float = 0.3, keyframe_turn_deg: float = 40.0, goal_tolerance: float = 0.05,
                     stuck_steps: int = 0, explore_range: float = 0.0, recheck_faded: bool = False, presume_after: int = 200,
-                    hold_sighting: bool = True):
+                    hold_sighting: bool = True, look_again: bool = True):
     return _navigator(encoder, proposer, seed, 1, integrate_every=integrate_every, keyframe_move=keyframe_move,
                       keyframe_turn_deg=keyframe_turn_deg, goal_tolerance=goal_tolerance, stuck_steps=stuck_steps,
                       explore_range=explore_range, recheck_faded=recheck_faded, presume_after=presume_after,
-                      hold_sighting=hold_sighting)
+                      hold_sighting=hold_sighting, look_again=look_again)
 
 
 def _frame_searcher(encoder: str = "embedded", proposer: str = SEARCH_PROPOSER):
@@ -193,8 +193,9 @@ register_agent(AgentSpec(
 register_agent(AgentSpec(
     "twin-navigator", _twin_navigator, "object_search",
     "matched map-free twin of map-navigator (CLIP-on-Wheels style): the same occupancy grid, frontiers, OMPL planner, "
-    "stop and presume rules, with recognition on the current frame only and the goal's last sighting kept",
-    {**_NAVIGATOR_OPTIONS, "hold_sighting": Option(bool, True)}, twin_of="map-navigator",
+    "stop and presume rules, with recognition on the current frame only and the goal's last sighting kept; "
+    "in a chain it looks again for each later goal",
+    {**_NAVIGATOR_OPTIONS, "hold_sighting": Option(bool, True), "look_again": Option(bool, True)}, twin_of="map-navigator",
 ))
 register_agent(AgentSpec(
     "frame-searcher", _frame_searcher, "object_search",

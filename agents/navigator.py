@@ -13,6 +13,11 @@ phase:
 4. at the goal: ``stop``. With no goal and no frontier left, it stops where it is (with
    ``presume_after``, it first presumes the goal present and heads for its best guess).
 
+In a multi-goal search (the observation's ``goal`` changes after a stop) it keeps its map and
+plans for the new goal at once: what it saw while looking for the earlier goals answers the
+query, and only the goal's own state (sightings, presumption, its step count) starts again. With
+``look_again`` (the map-free twin) it looks around first and explores again what it saw before.
+
 Observations: ``rgb``, ``depth``, ``K``, ``cam_to_world`` (posed RGB-D), ``base_pose`` (x, y,
 yaw odometry) and ``goal`` (text). Actions: ``[linear m/s, angular rad/s, stop]`` (stop > 0.5
 ends the episode), the ``cf/ObjectSearch`` action space.
@@ -132,6 +137,12 @@ class NavigatorConfig:
     current frame only (``MapperConfig.semantic_views=1``), so without it the goal would be
     forgotten as soon as it leaves the view. Off for the map navigator, whose map remembers."""
 
+    look_again: bool = False
+    """In a multi-goal search, space seen before the current goal was revealed counts as unexplored
+    for frontiers again (the occupancy grid and the planner keep all of it). The map-free twin's
+    setting: it remembers where it has been but not what it saw there, so a later goal sends it
+    to look again rather than presume. Off for the map navigator, whose map remembers what it saw."""
+
     def __post_init__(self) -> None:
         if not (isinstance(self.goal_tolerance, (int, float)) and not isinstance(self.goal_tolerance, bool)
                 and 0 < self.goal_tolerance < math.inf):
@@ -140,7 +151,7 @@ class NavigatorConfig:
             value = getattr(self, name)
             if isinstance(value, bool) or not isinstance(value, int) or value < 0:
                 raise ValueError(f"{name}: expected an integer >= 0, got {value!r}")
-        for name in ("recheck_faded", "hold_sighting"):
+        for name in ("recheck_faded", "hold_sighting", "look_again"):
             if not isinstance(getattr(self, name), bool):
                 raise ValueError(f"{name}: expected a bool, got {getattr(self, name)!r}")
         if not (isinstance(self.reject_radius, (int, float)) and not isinstance(self.reject_radius, bool)
@@ -210,10 +221,16 @@ class MapNavigator:
         self._exhausted = False
         """No frontier was left (``presume_after``: the goal is presumed present from then on)."""
         self._presumes = bool(self.config.presume_after) and not self.privileged
+        self._goal_start = 0
+        """The step at which the current goal was revealed (``presume_after`` counts from it)."""
         """Whether this search may presume its goal present (``presume_after``, perceived maps only)."""
         self._close_keys = np.zeros(0, np.int64)
-        """Space seen within ``explore_range``: world (x, y) on a lattice of half the grid's
-        cell side, as ``ix * 2**32 + iy`` keys, sorted and unique."""
+        """Space seen within ``explore_range`` (or, with ``look_again``, seen since the current
+        goal of a chain was revealed): world (x, y) on a lattice of half the grid's cell side, as
+        ``ix * 2**32 + iy`` keys, sorted and unique."""
+        self._looking_again = False
+        """A later goal of a chain is being searched with ``look_again``: frontiers count only the
+        space seen since it was revealed."""
         self.log: list[str] = []
         """Why the agent did what it did, one line per decision (for reports)."""
 
@@ -249,10 +266,12 @@ class MapNavigator:
         return grid, inflated
 
     def _see_close(self, observation) -> None:
-        """Add the space this frame shows within ``explore_range`` to the close-range set."""
+        """Add the space this frame shows within ``explore_range`` (the map's depth range when
+        looking again) to the close-range set."""
         c = self.config
+        depth = c.explore_range if c.explore_range > 0 else self.mapper.config.max_depth
         xy = world_points(observation["depth"], observation["K"], observation["cam_to_world"],
-                          max_depth=c.explore_range, stride=_CLOSE_STRIDE)[:, :2]
+                          max_depth=depth, stride=_CLOSE_STRIDE)[:, :2]
         step = c.grid.resolution / 2
         ij = np.floor(xy / step).astype(np.int64)
         keys = (ij[:, 0] << 32) + (ij[:, 1] & 0xFFFFFFFF)
@@ -261,7 +280,7 @@ class MapNavigator:
     def _frontier_grid(self, grid):
         """The grid frontiers are found on: ``grid`` itself, or with ``explore_range`` its
         observed cells narrowed to those seen up close (occupied cells stay observed)."""
-        if self.config.explore_range <= 0:
+        if self.config.explore_range <= 0 and not self._looking_again:
             return grid
         close = np.zeros(grid.shape, bool)
         if len(self._close_keys):
@@ -280,7 +299,7 @@ class MapNavigator:
         """The map's answer for the goal, without regions centred within ``reject_radius`` of a
         rejected sighting (``found`` False when none is left)."""
         c = self.config
-        if self._presumes and (self._steps >= c.presume_after or self._exhausted):
+        if self._presumes and (self._steps - self._goal_start >= c.presume_after or self._exhausted):
             found = self.mapper.locate_present(self._goal)
             presumed = found.extras.get("presumed")
             if presumed and presumed != self._presumed:
@@ -425,6 +444,18 @@ class MapNavigator:
         turned = abs(math.degrees(math.remainder(pose[2] - self._last_fused[2], 2 * math.pi)))
         return (c.keyframe_move > 0 and moved >= c.keyframe_move) or (c.keyframe_turn_deg > 0 and turned >= c.keyframe_turn_deg)
 
+    def _next_goal(self, goal: str) -> None:
+        """A multi-goal search revealed its next goal: keep the map and everything explored, start
+        the goal's own state again and plan for it on this step."""
+        self._note(f"next goal '{goal}' (after '{self._goal}')")
+        self._goal, self._goal_start = goal, self._steps
+        self._seen = self._closest_approach = self._presumed = None
+        self._rejected, self._exhausted, self._rechecking, self._failures = [], False, False, 0
+        self._path, self._to_goal, self._phase, self._backoff = None, False, "plan", 0
+        if self.config.look_again:  # nothing counts as explored: look around from here first
+            self._looking_again, self._close_keys, self._visited = True, np.zeros(0, np.int64), []
+            self._phase, self._turned, self._last_fused = "look", 0.0, None
+
     # -- protocol --------------------------------------------------------------------------
 
     def act(self, observation, info: dict | None = None) -> np.ndarray:
@@ -440,10 +471,12 @@ class MapNavigator:
             self._goal = str(observation["goal"])
             self.mapper.reset(**privileged_labels(self.mapper, info))
             self._started = True
+        elif str(observation["goal"]) != self._goal:
+            self._next_goal(str(observation["goal"]))
         if self._fuse_now(pose):
             self.mapper.integrate(observation, segmentation=(info or {}).get("segmentation") if self.privileged else None)
             self._last_fused = pose.copy()
-            if self.config.explore_range > 0:
+            if self.config.explore_range > 0 or self._looking_again:
                 self._see_close(observation)
         self._steps += 1
         if self._last_yaw is not None:

@@ -8,7 +8,8 @@ a carrot-following controller sized to the environment's control period: the car
 farthest path point within ``lookahead`` metres that the base sees along free cells; the base
 turns in place towards it, then drives straight to it. Where only the rim of the success region
 is reachable, it aims closer to the rim. It stops once the distance to the goal that ``info``
-reports is inside the success radius minus half the inset, or when the path is done.
+reports is inside the success radius minus half the inset, or when the path is done. In a chain
+(several goals revealed one at a time) it plans again from where it stopped for each goal revealed.
 """
 
 from __future__ import annotations
@@ -67,8 +68,10 @@ class OracleSearchAgent:
         self._inset = self.inset
 
     def _plan(self, observation, info: dict) -> None:
-        free = np.asarray(info["free_grid"], bool)
-        origin, cell = np.asarray(info["grid_origin"], float), float(info["grid_cell"])
+        if "free_grid" in info:  # at reset; a chain's later goals are planned on the same floor plan
+            self._free = np.asarray(info["free_grid"], bool)
+            self._origin, self._cell = np.asarray(info["grid_origin"], float), float(info["grid_cell"])
+        free, origin, cell = self._free, self._origin, self._cell
         lo, hi = np.asarray(info["goal_aabb"], float)[:, :2]
         self._radius = float(info.get("success_distance", 1.0))
         h, w = free.shape
@@ -88,7 +91,7 @@ class OracleSearchAgent:
                 break
         pts = [pose[:2]] + [origin + (np.array([cc, rr]) + 0.5) * cell for rr, cc in cells[1:]]
         self._path = np.asarray(pts if len(pts) > 1 else [pose[:2], pose[:2] + 1e-3])
-        self._free, self._origin, self._cell = free, origin, cell
+        self._i = 0
 
     def _clear(self, a, b) -> bool:
         """True when the segment a-b crosses only free cells (sampled every quarter cell)."""
@@ -103,7 +106,7 @@ class OracleSearchAgent:
         """Shape: returns (3,) float32 ``[linear, angular, stop]``."""
         if info is None:
             raise ValueError("OracleSearchAgent is privileged: act() needs the environment's info")
-        if self._path is None:
+        if self._path is None or info.get("goal_reached"):  # a chain revealed its next goal (and its box)
             self._plan(observation, info)
         if float(info["distance_to_goal"]) <= self._radius - self._inset / 2:
             return np.array([0.0, 0.0, 1.0], np.float32)
@@ -118,6 +121,8 @@ class OracleSearchAgent:
         j = self._i + int(min(np.searchsorted(ahead, self.lookahead), len(ahead) - 1))
         while j > self._i + 1 and not self._clear(pose[:2], path[j]):
             j -= 1  # the farthest carrot in sight: no corner of a doorway is cut
+        if j > self._i and not self._clear(pose[:2], path[j]):
+            j = self._i  # off the path's cell centres by a wall's corner: back to the nearest waypoint first
         dx, dy = path[j] - pose[:2]
         err = math.remainder(math.atan2(dy, dx) - pose[2], 2 * math.pi)
         turn = float(np.clip(err / self.dt, -self.max_angular, self.max_angular))

@@ -9,7 +9,10 @@ Episode suites roll agents through environment episodes (:mod:`harness.runner.ta
   name, synonym, attribute or function);
 * ``search``: the shipped household object-search episodes (``scenes/household/episodes-v1.jsonl``);
 * ``search-v2``: object search in the v2 apartments filled from the object library, on the sealed
-  test set (``scenes/sealed-v2/search-episodes-v2.jsonl``, 150 episodes).
+  test set (``scenes/sealed-v2/search-episodes-v2.jsonl``, 150 episodes);
+* ``chain-v2``: multi-goal search in the same apartments (``scenes/sealed-v2/chain-episodes-v2.jsonl``,
+  30 chains of 2, 3 and 4 goals revealed one at a time; success per position in the chain:
+  ``reached_k``, the first k goals reached in a row).
 
 The v2 suites' agents come in matched pairs: each map-equipped agent beside its map-free twin
 (``twin-pusher``, ``twin-navigator``: the same views, exploration, planner and rules, no concept
@@ -52,10 +55,12 @@ import json
 from conceptfusion.errors import HarnessError
 from conceptfusion.names import lookup
 from sim_envs.scenes.episodes import SCENES_ROOT, Episode, load_episodes
+from sim_envs.scenes.chain_episodes import check_chains_reachable
 from sim_envs.scenes.sealed import SEALED_FOLDER, is_sealed_file, verify_sealed
 from sim_envs.scenes.splits import splits
 
-__all__ = ["Suite", "SUITES", "get_suite", "DEFAULT_SUITES", "REARRANGE_V2_ENV", "SEARCH_V2_LIMIT", "FRAME_SEARCHER_LIMIT", "suite_encoder", "suite_episodes", "FLOORS_FILE",
+__all__ = ["Suite", "SUITES", "get_suite", "DEFAULT_SUITES", "REARRANGE_V2_ENV", "SEARCH_V2_LIMIT", "CHAIN_V2_LIMIT",
+           "FRAME_SEARCHER_LIMIT", "suite_encoder", "suite_episodes", "FLOORS_FILE",
            "calibrated_bounds", "suite_over"]
 
 FLOORS_FILE = Path(__file__).resolve().parents[1] / "data" / "floors" / "floors.json"
@@ -145,6 +150,10 @@ SEARCH_V2_LIMIT = 40
 named by name, synonym, attribute, function in turn), so that the default comparison fits its
 time; ``--limit 150`` runs them all (the headline figures)."""
 
+CHAIN_V2_LIMIT = 12
+"""Chains ``chain-v2`` runs unless ``--limit`` says otherwise: the first 12 of its 30 (four each of
+2, 3 and 4 goals); ``--limit 30`` runs them all (the headline figures)."""
+
 FRAME_SEARCHER_LIMIT = 20
 """Episodes the weak reactive ``frame-searcher`` runs in ``search-v2`` unless ``--limit`` says
 otherwise: the slowest agent (it segments every frame) and a reference, not the headline
@@ -179,6 +188,14 @@ SUITES: dict[str, Suite] = {
             agents=("map-navigator", "twin-navigator", "frame-searcher", "random-walker"),
             env_kwargs=dict(SEARCH_V2_ENV), default_encoder="embedded-v2", limit=SEARCH_V2_LIMIT,
             agent_limits={"frame-searcher": FRAME_SEARCHER_LIMIT},
+        ),
+        Suite(
+            "chain-v2", "episodes",
+            "multi-goal search in library-filled apartments (sealed set): chains of 2-4 goals revealed one at a time; "
+            "success per position in the chain (reached_k)",
+            task="object_search", episodes_file=SEALED_FOLDER / "chain-episodes-v2.jsonl",
+            agents=("map-navigator", "twin-navigator", "random-walker"),
+            env_kwargs=dict(SEARCH_V2_ENV), default_encoder="embedded-v2", limit=CHAIN_V2_LIMIT,
         ),
         Suite("query", "maps", "text, image and click query localisation over fused tabletop maps (3D mIoU, detection accuracy)"),
         Suite("query-open", "maps",
@@ -219,7 +236,7 @@ SUITES: dict[str, Suite] = {
 }
 """Every suite by name."""
 
-DEFAULT_SUITES = ("query-open", "query-v2", "ablation-v2", "spatial-v2", "rearrange-v2", "search-v2")
+DEFAULT_SUITES = ("query-open", "query-v2", "ablation-v2", "spatial-v2", "rearrange-v2", "search-v2", "chain-v2")
 """What ``cfharness run`` runs with no ``--suite``: the v2 world (object library, evaluation seeds)
 for every suite: open-vocabulary, image and click queries, the feature ablation, spatial questions,
 rearrangement and search. The v1 suites (``query``, ``ablation``, ``spatial``, ``rearrange``,
@@ -253,6 +270,8 @@ def suite_episodes(suite: Suite) -> list[Episode]:
     episodes = load_episodes(suite.episodes_file).episodes
     if is_sealed_file(suite.episodes_file):
         verify_sealed(suite.episodes_file, {e.scene for e in episodes})
+    if suite.task == "object_search":
+        check_chains_reachable(episodes, where=str(suite.episodes_file))
     return [e for e in episodes if not split.is_reserved_scene(e.scene)]
 
 

@@ -215,6 +215,11 @@ def _run_search(job: EpisodeJob, agent, recorder: EpisodeRecorder | None = None)
         "steps": int(info["steps"]), "collisions": int(info["collisions"]), "path_length": float(info["path_length"]),
         "shortest_path_length": float(info["shortest_path_length"]),
     }
+    chain = len(job.episode.goals)
+    if chain > 1:  # a multi-goal search: how far along the chain it got, per position (VLMaps' "k in a row")
+        reached = int(info["goals_reached"])
+        metrics.update({"goals_reached": reached, "chain_length": chain,
+                        **{f"reached_{k}": reached >= k for k in range(1, chain + 1)}})
     extras = {
         "path_xy": path, "start_xy": path[0] if path else None,
         "goal_xy": [round(float(v), 3) for v in (box[0, :2] + box[1, :2]) / 2], "scene": job.episode.scene,

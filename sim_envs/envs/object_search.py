@@ -59,6 +59,14 @@ class ObjectSearchEnv(EpisodeLifecycle, LastFrameRendering, gym.Env):
     the final distance to the goal; steps; collisions. Reaching ``max_steps`` truncates the
     episode as a failure.
 
+    **Chains** (an episode with several goals, :mod:`sim_envs.scenes.chain_episodes`): the goals
+    are revealed one at a time (``goal`` is the current goal's ``description``). A stop within
+    the success distance of the current goal reaches it (reward 1) and reveals the next one; the
+    episode goes on. A stop anywhere else ends it. Success: every goal reached; ``info`` counts
+    ``goals_reached`` (in a row) of ``chain_length``; SPL uses the sum of the legs' shortest
+    paths, each from where the base stopped for the previous goal. ``max_steps`` is the whole
+    chain's budget.
+
     **Actions** ``Box(3)``: ``[linear m/s in [-0.3, 0.6], angular rad/s in [-1.5, 1.5], stop]``;
     ``stop > 0.5`` ends the episode. Each step applies the command for ``control_dt`` seconds
     (10 sub-steps); out-of-range values are clipped, NaN/inf raise ``ValueError``. A sub-step that
@@ -198,23 +206,26 @@ class ObjectSearchEnv(EpisodeLifecycle, LastFrameRendering, gym.Env):
         self._load(episode)
         self.episode = episode
         ids = [o.id for o in self.scene.objects]
-        goal_id = episode.goals[0].object_id
-        if goal_id not in ids:
-            raise SimError(
-                f"{self.env_name}: episode {episode.episode_id!r}: scene {self.scene.id} has no object {goal_id!r}"
-                f"{did_you_mean(goal_id, ids)} (objects: {', '.join(ids)})"
-            )
-        self._goal_index = ids.index(goal_id)
+        for k, goal in enumerate(episode.goals):
+            if goal.object_id not in ids:
+                raise SimError(
+                    f"{self.env_name}: episode {episode.episode_id!r}: goals[{k}]: scene {self.scene.id} has no object "
+                    f"{goal.object_id!r}{did_you_mean(goal.object_id, ids)} (objects: {', '.join(ids)})"
+                )
+            if len(episode.goals) > 1:
+                text = goal.description
+                if not isinstance(text, str) or not 1 <= len(text) <= _MAX_GOAL or any(c not in _GOAL_CHARSET for c in text):
+                    raise SimError(f"{self.env_name}: episode {episode.episode_id!r}: goals[{k}].description: a chain's goals "
+                                   f"are shown one at a time, so each needs a description of 1 to {_MAX_GOAL} characters of "
+                                   f"{_GOAL_CHARSET!r}; got {text!r}")
         x, y, yaw = (float(v) for v in episode.start_pose)
         if not self._is_free((x, y)):
             raise SimError(f"{self.env_name}: episode {episode.episode_id}: start pose ({x:.2f}, {y:.2f}) is inside an obstacle")
         self._pose = np.array([x, y, yaw], np.float64)
         self._steps, self._path_length, self._collisions = 0, 0.0, 0
-        box = object_aabbs(self._sim)[self._goal_index]
-        self._goal_box = box
-        cx, cy = self._occ.centres()
-        d = np.sqrt(np.maximum(np.maximum(box[0, 0] - cx, 0), cx - box[1, 0]) ** 2 + np.maximum(np.maximum(box[0, 1] - cy, 0), cy - box[1, 1]) ** 2)
-        self._shortest = geodesic_to_goal(self._free, self._occ.origin, self._occ.cell, (x, y), d <= self.success_distance)
+        self._goal_k, self._reached, self._shortest = 0, 0, 0.0
+        self._set_goal(0)
+        box = self._goal_box
         self._max_steps = int(self._max_steps_override or episode.max_steps)
         obs, info = self._observe()
         info["scene_graph"] = scene_graph(self._sim)
@@ -227,6 +238,24 @@ class ObjectSearchEnv(EpisodeLifecycle, LastFrameRendering, gym.Env):
         info["success_distance"] = self.success_distance
         self._episode_started()
         return obs, info
+
+    def _set_goal(self, k: int) -> None:
+        """Make the episode's goal ``k`` the current one; its leg's shortest path (from the base's
+        pose now) adds to the chain's."""
+        ids = [o.id for o in self.scene.objects]
+        self._goal_k = k
+        self._goal_index = ids.index(self.episode.goals[k].object_id)
+        box = object_aabbs(self._sim)[self._goal_index]
+        self._goal_box = box
+        cx, cy = self._occ.centres()
+        d = np.sqrt(np.maximum(np.maximum(box[0, 0] - cx, 0), cx - box[1, 0]) ** 2 + np.maximum(np.maximum(box[0, 1] - cy, 0), cy - box[1, 1]) ** 2)
+        self._shortest += geodesic_to_goal(self._free, self._occ.origin, self._occ.cell, tuple(self._pose[:2]), d <= self.success_distance)
+
+    def _goal_text(self) -> str:
+        """What the observation's ``goal`` says: the instruction, or a chain's current goal."""
+        if len(self.episode.goals) > 1:
+            return self.episode.goals[self._goal_k].description
+        return self.episode.instruction
 
     # -- dynamics --------------------------------------------------------------------------
 
@@ -250,13 +279,22 @@ class ObjectSearchEnv(EpisodeLifecycle, LastFrameRendering, gym.Env):
                 self._path_length += math.dist((x, y), nxt)
                 self._pose = np.array([nxt[0], nxt[1], yaw_new])
         obs, info = self._observe()
-        dist = info["distance_to_goal"]
-        success = bool(stop and dist <= self.success_distance)
+        reached = bool(stop and info["distance_to_goal"] <= self.success_distance)
+        done = stop and not (reached and self._goal_k + 1 < len(self.episode.goals))
+        self._reached += reached
+        if reached and not done:  # a chain: the next goal is revealed where the base stands
+            self._set_goal(self._goal_k + 1)
+            obs["goal"] = self._goal_text()
+            info.update(self._goal_info())
+            info["goal_aabb"] = np.asarray(self._goal_box, np.float64).copy()
+        success = bool(reached and done)
         info["success"] = success
+        info["goal_reached"] = reached
+        info["goals_reached"] = self._reached
         info["spl"] = float(success * self._shortest / max(self._shortest, self._path_length, 1e-9)) if math.isfinite(self._shortest) else 0.0
-        truncated = (not stop) and self._steps >= self._max_steps
-        self._step_done(stop, truncated)
-        return obs, float(success), bool(stop), bool(truncated), info
+        truncated = (not done) and self._steps >= self._max_steps
+        self._step_done(done, truncated)
+        return obs, float(reached), bool(done), bool(truncated), info
 
     # -- sensing ---------------------------------------------------------------------------
 
@@ -287,7 +325,7 @@ class ObjectSearchEnv(EpisodeLifecycle, LastFrameRendering, gym.Env):
             f = self._camera.render(segmentation=self.segmentation)
             self._last_frame = f
             frame = f.observation()
-        obs = {**frame, "base_pose": self._pose.copy(), "goal": self.episode.instruction}
+        obs = {**frame, "base_pose": self._pose.copy(), "goal": self._goal_text()}
         info = {
             "episode_id": self.episode.episode_id,
             "scene_id": self.scene.id,
@@ -295,13 +333,23 @@ class ObjectSearchEnv(EpisodeLifecycle, LastFrameRendering, gym.Env):
             "object_ids": [o.id for o in self.scene.objects],
             "object_names": [o.name for o in self.scene.objects],
             "object_phrases": [list(p) for p in self._object_phrases],
-            "goal_object_id": self.episode.goals[0].object_id,
-            "distance_to_goal": box_distance_xy(self._pose[:2], self._goal_box[0, :2], self._goal_box[1, :2]),
-            "shortest_path_length": self._shortest,
+            **self._goal_info(),
             "path_length": self._path_length,
             "steps": self._steps,
             "collisions": self._collisions,
             "success": False,
             "spl": 0.0,
+            "goals_reached": self._reached,
+            "chain_length": len(self.episode.goals),
         }
         return obs, info
+
+    def _goal_info(self) -> dict:
+        """The current goal's entries of ``info``: its object id, index in the chain, the base's
+        distance to it and the shortest path so far."""
+        return {
+            "goal_object_id": self.episode.goals[self._goal_k].object_id,
+            "goal_index": self._goal_k,
+            "distance_to_goal": box_distance_xy(self._pose[:2], self._goal_box[0, :2], self._goal_box[1, :2]),
+            "shortest_path_length": self._shortest,
+        }

@@ -39,6 +39,10 @@ class _Table:
 
     locate_present = ConceptMapper.locate_present
 
+    @property
+    def described_n(self):
+        return self.map.has_feature
+
     def reset(self, **_) -> None:
         pass
 

@@ -112,8 +112,9 @@ def test_registered_twins_match_their_map_agents():
             assert key in spec.kwargs and spec.kwargs[key].default == opt.default, key
     nav = make_agent("twin-navigator", encoder="color")
     assert nav.mapper.config.semantic_views == 1 and nav.config.hold_sighting
+    assert nav.config.look_again
     assert make_agent("map-navigator", encoder="color").config == NavigatorConfig(
-        **{**nav.config.__dict__, "hold_sighting": False})
+        **{**nav.config.__dict__, "hold_sighting": False, "look_again": False})
     push = make_agent("twin-pusher", encoder="color")
     assert push.use_scan and push.mapper.config.semantic_views >= 9
     with pytest.raises(ValueError, match="a matched twin .* is map-free"):

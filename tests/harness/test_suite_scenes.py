@@ -84,7 +84,7 @@ def test_episode_suites_skip_reserved_episodes_and_keep_their_counts():
 def test_the_default_comparison_is_the_v2_world():
     from harness.runner.suites import DEFAULT_SUITES
 
-    assert set(DEFAULT_SUITES) == {"query-open", "query-v2", "ablation-v2", "spatial-v2", "rearrange-v2", "search-v2"}
+    assert set(DEFAULT_SUITES) == {"query-open", "query-v2", "ablation-v2", "spatial-v2", "rearrange-v2", "search-v2", "chain-v2"}
     for name in DEFAULT_SUITES:
         scenes = _suite_scenes(name)
         assert scenes and all("-v2-" in sid for sid, _ in scenes), name
