@@ -142,3 +142,22 @@ def test_report_marks_privileged_results(tmp_path):
     plain = [make_record(run_id="r", suite="s", task="t", agent="a", encoder="e", episode_id="e0", seed=0, status="ok",
                          metrics={"success": True})]
     assert "- privileged (read ground truth a robot does not have): none" in write_report(plain, tmp_path / "p").read_text()
+
+
+def test_report_opens_each_suite_with_the_map_agent_against_its_twin(tmp_path):
+    agents = (("map-navigator", {"uses_map": True}), ("twin-navigator", {"uses_map": False, "twin_of": "map-navigator"}),
+              ("random-walker", {"uses_map": False}))
+    recs = [make_record(run_id="r", suite="s", task="object_search", agent=a, encoder="e", episode_id=f"e{i}", seed=0,
+                        status="ok", metrics={"success": (a == "map-navigator" and i < 5) or (a == "twin-navigator" and i < 2)},
+                        extras=x)
+            for i in range(8) for a, x in agents]
+    text = write_report(recs, tmp_path).read_text()
+    suite = text[text.index("## Suite `s`"):]
+    # the first table of the suite is the matched pair, before the suite's own table
+    assert suite.index("### Map agent against its matched map-free twin") < suite.index("| agent | encoder |")
+    twins = suite[suite.index("### Map agent against its matched map-free twin"):suite.index("| agent | encoder |")]
+    assert "| map-navigator (e) | twin-navigator (e) | success | 8 | 0.62 | 0.25 | +0.38 [" in twins and "| 3 / 0 |" in twins
+    assert "random-walker" not in twins
+    # the references follow; the twin pair is not repeated there
+    refs = suite[suite.index("map-equipped agents against the weak and random references"):]
+    assert "| map-navigator (e) | random-walker (e) | success |" in refs and "twin-navigator (e) | success" not in refs

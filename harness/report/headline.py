@@ -1,0 +1,163 @@
+"""The headline figures: measured once on the sealed test set, kept with the records they come from.
+
+``python -m harness.report.headline RUN... --write`` reads the records of run folders over the
+sealed suites (``rearrange-v2``, ``search-v2``, ``chain-v2``, each with ``--limit`` of its whole
+file), refuses records of any other episode file, and writes:
+
+- ``harness/data/sealed/records.jsonl``: the records, stripped to what the figures need
+  (suite, agent, encoder, episode, seed, status, success and the chain positions, the goal's split
+  group and the ``twin_of`` / ``uses_map`` / ``privileged`` marks);
+- ``harness/data/sealed/measured.json``: the figures (:func:`headline`) with the commit that
+  measured them and the sealed manifest's SHA-256.
+
+Figures, per suite and encoder: every agent's success with its 95% Wilson interval; each map
+agent minus its matched twin, paired per episode (bootstrap interval, exact McNemar); the chain
+suite's success per position (``reached_k``: the first k goals in a row); and, per agent, success
+by the goal's split group (seen, held-out instance, held-out category). The README's headline
+table is :func:`headline_table` of this file; a test recomputes the file from the records.
+"""
+
+from __future__ import annotations
+
+import argparse
+import hashlib
+import json
+import subprocess
+import sys
+from pathlib import Path
+
+from conceptfusion.errors import HarnessError
+from conceptfusion.io_utils import atomic_write_text
+from harness.report.stats import metric_value, paired_comparison, wilson_interval
+from harness.runner.results import latest_records, load_results
+from sim_envs.scenes.sealed import MANIFEST_NAME, SEALED_FOLDER
+
+__all__ = ["SEALED_SUITES", "DATA_DIR", "RECORDS_FILE", "MEASURED_FILE", "strip_record", "headline", "headline_table", "main"]
+
+SEALED_SUITES = {"rearrange-v2": 160, "search-v2": 150, "chain-v2": 30}
+"""The suites measured on the sealed set, with their whole size."""
+DATA_DIR = Path(__file__).resolve().parents[1] / "data" / "sealed"
+RECORDS_FILE = DATA_DIR / "records.jsonl"
+MEASURED_FILE = DATA_DIR / "measured.json"
+
+_KEEP_EXTRAS = ("twin_of", "uses_map", "privileged", "goal_split")
+
+
+def strip_record(r: dict) -> dict:
+    """A record with what the headline figures need only."""
+    metrics = {k: v for k, v in (r.get("metrics") or {}).items() if k == "success" or k.startswith("reached_")}
+    extras = {k: v for k, v in (r.get("extras") or {}).items() if k in _KEEP_EXTRAS}
+    return {"suite": r["suite"], "agent": r["agent"], "encoder": r["encoder"], "episode_id": r["episode_id"],
+            "seed": r["seed"], "status": r["status"], "metrics": metrics, "extras": extras}
+
+
+def _rate(values: list[bool]) -> dict:
+    k, n = sum(values), len(values)
+    lo, hi = wilson_interval(k, n) if n else (float("nan"), float("nan"))
+    return {"successes": k, "n": n, "rate": round(k / n, 4) if n else None, "ci": [round(lo, 4), round(hi, 4)]}
+
+
+def headline(records: list[dict]) -> dict:
+    """The headline figures of sealed-suite records (see the module docstring).
+
+    Raises:
+        HarnessError: a record of another suite, or a suite whose agents ran different episodes
+            than its size says (a slice is not a headline).
+    """
+    records = latest_records(records)
+    out: dict = {}
+    for r in records:
+        if r["suite"] not in SEALED_SUITES:
+            raise HarnessError(f"headline: record of suite {r['suite']!r}; expected only {', '.join(SEALED_SUITES)}")
+    for suite, size in SEALED_SUITES.items():
+        mine = [r for r in records if r["suite"] == suite]
+        if not mine:
+            continue
+        by_enc: dict = {}
+        for enc in sorted({r["encoder"] for r in mine}):
+            recs = [r for r in mine if r["encoder"] == enc]
+            agents: dict = {}
+            for agent in sorted({r["agent"] for r in recs}):
+                ra = [r for r in recs if r["agent"] == agent]
+                if len(ra) != size:
+                    raise HarnessError(f"headline: {suite} {agent} ({enc}) has {len(ra)} records; the headline needs all {size}")
+                flags = [bool(metric_value(r, "success")) for r in ra]
+                entry = {"success": _rate(flags), "privileged": any((r.get("extras") or {}).get("privileged") for r in ra)}
+                twin_of = {(r.get("extras") or {}).get("twin_of") for r in ra} - {None}
+                if twin_of:
+                    entry["twin_of"] = sorted(twin_of)[0]
+                groups = sorted({(r.get("extras") or {}).get("goal_split") for r in ra} - {None})
+                if groups:
+                    entry["by_group"] = {g: _rate([bool(metric_value(r, "success")) for r in ra
+                                                   if (r.get("extras") or {}).get("goal_split") == g]) for g in groups}
+                positions = sorted({int(k.split("_")[1]) for r in ra for k in r["metrics"] if k.startswith("reached_")})
+                if positions:
+                    entry["positions"] = {str(k): _rate([bool(r["metrics"][f"reached_{k}"]) for r in ra if f"reached_{k}" in r["metrics"]])
+                                          for k in positions}
+                agents[agent] = entry
+            twins = {}
+            for agent, entry in agents.items():
+                base = entry.get("twin_of")
+                if base in agents:
+                    res = paired_comparison(recs, base, agent, "success", suite=suite, encoder=enc)
+                    twins[f"{base} - {agent}"] = {
+                        "diff": round(res.mean_diff, 4), "ci": [round(res.ci_low, 4), round(res.ci_high, 4)],
+                        "map_only": res.a_only, "twin_only": res.b_only, "p": float(f"{res.p_value:.3g}"), "pairs": res.n_pairs}
+            by_enc[enc] = {"agents": agents, "twins": twins}
+        out[suite] = by_enc
+    return out
+
+
+def headline_table(measured: dict) -> str:
+    """The README's headline table (Markdown) of a measured file: per suite and encoder, the map
+    agent, its twin and their paired difference."""
+    rows = ["| suite | perception | map agent | matched twin | map - twin [95% CI] | McNemar p | n |",
+            "|---|---|---|---|---|---|---|"]
+    for suite, by_enc in measured["figures"].items():
+        for enc, fig in by_enc.items():
+            for pair, d in fig["twins"].items():
+                base, twin = pair.split(" - ")
+                a, b = fig["agents"][base]["success"], fig["agents"][twin]["success"]
+                priv = " (privileged)" if fig["agents"][base]["privileged"] else ""
+                rows.append(f"| `{suite}` | {enc}{priv} | {base} {a['successes']}/{a['n']} | {twin} {b['successes']}/{b['n']} "
+                            f"| {d['diff']:+.2f} [{d['ci'][0]:+.2f}, {d['ci'][1]:+.2f}] | {d['p']:.2g} | {d['pairs']} |")
+    return "\n".join(rows)
+
+
+def _manifest_sha() -> str:
+    return hashlib.sha256((SEALED_FOLDER / MANIFEST_NAME).read_bytes()).hexdigest()
+
+
+def _commit() -> str:
+    try:
+        return subprocess.run(["git", "rev-parse", "HEAD"], capture_output=True, text=True, check=True,
+                              cwd=Path(__file__).resolve().parent).stdout.strip()
+    except (OSError, subprocess.CalledProcessError):
+        return "unknown"
+
+
+def main(argv: list[str] | None = None) -> int:
+    p = argparse.ArgumentParser(prog="python -m harness.report.headline", description=__doc__.splitlines()[0])
+    p.add_argument("runs", nargs="+", help="run folders with results.jsonl over the sealed suites")
+    p.add_argument("--write", action="store_true", help=f"write {RECORDS_FILE.name} and {MEASURED_FILE.name} under {DATA_DIR}")
+    p.add_argument("--commit", default=None, help="the commit that measured the runs (default: git rev-parse HEAD)")
+    args = p.parse_args(argv)
+    try:
+        records = [strip_record(r) for run in args.runs for r in load_results(Path(run) / "results.jsonl")]
+        figures = headline(records)
+    except (HarnessError, ValueError, OSError) as exc:
+        print(f"error: {exc}", file=sys.stderr)
+        return 2
+    measured = {"format": "cf-headline", "version": 1, "commit": args.commit or _commit(), "sealed_manifest_sha256": _manifest_sha(),
+                "figures": figures}
+    print(headline_table(measured))
+    if args.write:
+        keep = sorted(latest_records(records), key=lambda r: (r["suite"], r["encoder"], r["agent"], r["episode_id"], r["seed"]))
+        atomic_write_text(RECORDS_FILE, "".join(json.dumps(r, sort_keys=True) + "\n" for r in keep))
+        atomic_write_text(MEASURED_FILE, json.dumps(measured, indent=1, sort_keys=True) + "\n")
+        print(f"wrote {RECORDS_FILE} ({len(keep)} records) and {MEASURED_FILE}")
+    return 0
+
+
+if __name__ == "__main__":
+    sys.exit(main())
