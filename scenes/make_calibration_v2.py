@@ -9,7 +9,8 @@ to develop and choose agent settings (and perception) on, never to report.
   the shipped ``search-v2`` ones (goals named in turn by name, synonym, attribute, function),
   from another generator seed;
 - ``calibration-v2/chain-episodes-v2.jsonl``: one multi-goal search (chains of 2, 3 and 4 goals
-  in turn, :mod:`sim_envs.scenes.chain_episodes`) per apartment;
+  in turn, :mod:`sim_envs.scenes.chain_episodes`) per apartment, and
+  ``calibration-v2/fetch-episodes-v2.jsonl``: one "explore, then fetch" episode per apartment;
 - ``calibration-v2/tabletop-v2-<seed>.json`` and ``calibration-v2/rearrange-episodes-v2.jsonl``:
   :data:`NUM_TABLE_EPISODES` rearrangement episodes drawn as the shipped ``rearrange-v2`` ones
   (:func:`~sim_envs.scenes.tabletop_v2_episodes.generate_tabletop_v2_episodes`, one table each,
@@ -27,12 +28,12 @@ from __future__ import annotations
 import sys
 
 from scenes.shipped import generator_main
-from sim_envs.scenes.chain_episodes import chain_file_text
+from sim_envs.scenes.chain_episodes import FETCH_EXPLORE_STEPS, FETCH_STEPS_PER_GOAL, chain_file_text
 from sim_envs.scenes.search_episodes_v2 import search_episode_files
 from sim_envs.scenes.splits import splits
 
 __all__ = ["FOLDER", "SEARCH_FILE", "REARRANGE_FILE", "NUM_APARTMENTS", "SEED_OFFSET", "GENERATOR_SEED", "NUM_TABLE_EPISODES",
-           "TABLE_SEED_OFFSET", "TABLE_GENERATOR_SEED", "CHAIN_FILE", "CHAIN_GENERATOR_SEED", "chain_files", "apartment_seeds", "table_seeds", "search_files", "table_files", "build_files",
+           "TABLE_SEED_OFFSET", "TABLE_GENERATOR_SEED", "CHAIN_FILE", "CHAIN_GENERATOR_SEED", "FETCH_FILE", "FETCH_GENERATOR_SEED", "chain_files", "apartment_seeds", "table_seeds", "search_files", "table_files", "build_files",
            "main"]
 
 FOLDER = "calibration-v2"
@@ -51,6 +52,8 @@ TABLE_SEEDS = 1500
 TABLE_GENERATOR_SEED = 7103
 CHAIN_FILE = f"{FOLDER}/chain-episodes-v2.jsonl"
 CHAIN_GENERATOR_SEED = 7106
+FETCH_FILE = f"{FOLDER}/fetch-episodes-v2.jsonl"
+FETCH_GENERATOR_SEED = 7107
 
 
 def apartment_seeds() -> list[int]:
@@ -83,7 +86,9 @@ def chain_files(search: dict[str, str]) -> dict[str, str]:
     """The chain episode file (``CHAIN_FILE`` -> text), one chain per apartment of ``search``
     (:func:`search_files`' output)."""
     apartments = {rel: text for rel, text in search.items() if rel.endswith(".json")}
-    return {CHAIN_FILE: chain_file_text(apartments, per_scene=1, generator_seed=CHAIN_GENERATOR_SEED, id_prefix="chain-v2-cal")}
+    return {CHAIN_FILE: chain_file_text(apartments, per_scene=1, generator_seed=CHAIN_GENERATOR_SEED, id_prefix="chain-v2-cal"),
+            FETCH_FILE: chain_file_text(apartments, per_scene=1, generator_seed=FETCH_GENERATOR_SEED, id_prefix="fetch-v2-cal",
+                                        explore_steps=FETCH_EXPLORE_STEPS, steps_per_goal=FETCH_STEPS_PER_GOAL)}
 
 
 def build_files() -> dict[str, str]:

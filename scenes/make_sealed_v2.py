@@ -13,7 +13,9 @@ instance, a held-out instance of a trained category or an instance of a held-out
 - ``sealed-v2/tabletop-v2-<seed>.json`` and ``sealed-v2/rearrange-episodes-v2.jsonl``:
   :data:`NUM_TABLE_EPISODES` rearrangement episodes, one table each;
 - ``sealed-v2/chain-episodes-v2.jsonl``: :data:`NUM_CHAINS` multi-goal searches (chains of 2, 3
-  and 4 goals in turn, :mod:`sim_envs.scenes.chain_episodes`) in the first apartments, two each.
+  and 4 goals in turn, :mod:`sim_envs.scenes.chain_episodes`) in the first apartments, two each;
+- ``sealed-v2/fetch-episodes-v2.jsonl``: :data:`NUM_FETCH` "explore, then fetch" episodes (an
+  exploration budget, then 2, 3 or 4 goals one at a time) in the other apartments, three each.
 
 Sizes: a success rate near one half over 150 episodes has a 95% interval of about +-0.08 (Wilson).
 ``sealed-v2/MANIFEST.json`` records every file's and every episode's SHA-256
@@ -29,12 +31,12 @@ from __future__ import annotations
 import sys
 
 from scenes.shipped import generator_main
-from sim_envs.scenes.chain_episodes import chain_file_text
+from sim_envs.scenes.chain_episodes import FETCH_EXPLORE_STEPS, FETCH_STEPS_PER_GOAL, chain_file_text
 from sim_envs.scenes.sealed import MANIFEST_NAME, SEALED_FOLDER_NAME, manifest_text
 from sim_envs.scenes.search_episodes_v2 import search_episode_files
 from sim_envs.scenes.splits import splits
 
-__all__ = ["FOLDER", "SEARCH_FILE", "REARRANGE_FILE", "CHAIN_FILE", "NUM_CHAINS", "chain_file", "NUM_APARTMENTS", "NUM_TABLE_EPISODES", "TABLE_SEED_OFFSET", "TABLE_SEEDS",
+__all__ = ["FOLDER", "SEARCH_FILE", "REARRANGE_FILE", "CHAIN_FILE", "NUM_CHAINS", "chain_file", "FETCH_FILE", "NUM_FETCH", "fetch_file", "NUM_APARTMENTS", "NUM_TABLE_EPISODES", "TABLE_SEED_OFFSET", "TABLE_SEEDS",
            "SEARCH_GENERATOR_SEED", "TABLE_GENERATOR_SEED", "GOAL_GROUPS", "apartment_seeds", "table_seeds", "build_files", "main"]
 
 FOLDER = SEALED_FOLDER_NAME
@@ -52,6 +54,9 @@ TABLE_GENERATOR_SEED = 9402
 CHAIN_FILE = f"{FOLDER}/chain-episodes-v2.jsonl"
 NUM_CHAINS = 30
 CHAIN_GENERATOR_SEED = 9403
+FETCH_FILE = f"{FOLDER}/fetch-episodes-v2.jsonl"
+NUM_FETCH = 30
+FETCH_GENERATOR_SEED = 9404
 GOAL_GROUPS = ("seen", "held_out_instance", "held_out_category")
 """Split groups a goal may come from: every group but ``validation``."""
 
@@ -76,7 +81,8 @@ def build_files() -> dict[str, str]:
     files.update(episode_files(TABLE_GENERATOR_SEED, NUM_TABLE_EPISODES, table_seeds(), folder=FOLDER, episode_file=REARRANGE_FILE,
                                id_prefix="rearrange-v2-sealed", goal_groups=GOAL_GROUPS))
     files[CHAIN_FILE] = chain_file(files)
-    files[f"{FOLDER}/{MANIFEST_NAME}"] = manifest_text(files, episode_files=(SEARCH_FILE, REARRANGE_FILE, CHAIN_FILE))
+    files[FETCH_FILE] = fetch_file(files)
+    files[f"{FOLDER}/{MANIFEST_NAME}"] = manifest_text(files, episode_files=(SEARCH_FILE, REARRANGE_FILE, CHAIN_FILE, FETCH_FILE))
     return files
 
 
@@ -89,6 +95,19 @@ def chain_file(files: dict[str, str]) -> str:
     drawn = text.count("\n") - 1
     if drawn != NUM_CHAINS:
         raise RuntimeError(f"expected {NUM_CHAINS} chains, the generator drew {drawn}")
+    return text
+
+
+def fetch_file(files: dict[str, str]) -> str:
+    """The "explore, then fetch" episode file's text, drawn in the apartments the chains leave, three each."""
+    apartments = {f"{FOLDER}/household-v2-{seed}.json": files[f"{FOLDER}/household-v2-{seed}.json"]
+                  for seed in apartment_seeds()[NUM_CHAINS // 2:]}
+    text = chain_file_text(apartments, per_scene=NUM_FETCH // len(apartments), generator_seed=FETCH_GENERATOR_SEED,
+                           id_prefix="fetch-v2-sealed", goal_groups=GOAL_GROUPS, explore_steps=FETCH_EXPLORE_STEPS,
+                           steps_per_goal=FETCH_STEPS_PER_GOAL)
+    drawn = text.count("\n") - 1
+    if drawn != NUM_FETCH:
+        raise RuntimeError(f"expected {NUM_FETCH} fetch episodes, the generator drew {drawn}")
     return text
 
 

@@ -22,7 +22,7 @@ ROOT = Path(__file__).resolve().parents[1]
 PACKAGES = ("conceptfusion", "planners", "sim_envs", "agents", "tower_training", "harness", "scenes")
 
 BASE = {"conceptfusion", "conceptfusion.errors", "conceptfusion.names", "conceptfusion.frames",
-        "conceptfusion.cameras", "conceptfusion.io_utils"}
+        "conceptfusion.cameras", "conceptfusion.io_utils", "conceptfusion.tasks"}
 """Plain data types and utilities of the core that the simulator and planner packages may use."""
 
 ALLOWED = {

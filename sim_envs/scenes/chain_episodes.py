@@ -10,6 +10,11 @@ at a time).
 
 A map pays off here when a later goal was seen while looking for an earlier one, so consecutive
 goals lie in different rooms.
+
+"Explore, then fetch" episodes are chains with an exploration budget first (``explore_steps``):
+the observation's goal reads :data:`conceptfusion.tasks.EXPLORE_GOAL` until the budget is spent,
+then the goals follow one at a time, each with a smaller budget (:data:`FETCH_STEPS_PER_GOAL`):
+what was mapped while exploring should find them.
 """
 
 from __future__ import annotations
@@ -30,13 +35,17 @@ from sim_envs.scenes.format import load_scene
 from sim_envs.scenes.search_episodes import goal_mask, room_of
 from sim_envs.scenes.splits import SPLIT_GROUPS, object_group
 
-__all__ = ["CHAIN_LENGTHS", "STEPS_PER_GOAL", "THEN", "chain_instruction", "generate_chain_episodes", "chain_file_text",
+__all__ = ["CHAIN_LENGTHS", "STEPS_PER_GOAL", "FETCH_EXPLORE_STEPS", "FETCH_STEPS_PER_GOAL", "THEN", "chain_instruction", "generate_chain_episodes", "chain_file_text",
            "check_chains_reachable"]
 
 CHAIN_LENGTHS = (2, 3, 4)
 """Chain lengths, in turn."""
 STEPS_PER_GOAL = 250
 """Step budget per goal (a chain of k goals has ``k * STEPS_PER_GOAL``), as a single-goal search."""
+FETCH_EXPLORE_STEPS = 200
+"""Exploration budget of an "explore, then fetch" episode."""
+FETCH_STEPS_PER_GOAL = 150
+"""Step budget per goal once the exploration is over."""
 THEN = ", then "
 """What joins a chain's descriptions in its ``instruction``."""
 _MAX_INSTRUCTION = 200
@@ -51,7 +60,7 @@ def generate_chain_episodes(
     scene_files: list[Path], *, per_scene: int = 1, generator_seed: int = 0, chain_lengths: tuple[int, ...] = CHAIN_LENGTHS,
     robot_radius: float = 0.25, success_distance: float = 1.0, scenes_root: str | Path | None = None,
     description_kinds: tuple[str, ...] = ("name", "synonym", "attribute", "function"), id_prefix: str = "chain-v2",
-    goal_groups: tuple[str, ...] | None = None,
+    goal_groups: tuple[str, ...] | None = None, explore_steps: int = 0, steps_per_goal: int = STEPS_PER_GOAL,
 ) -> EpisodeSet:
     """``per_scene`` chains for each scene file (paths under ``scenes_root``).
 
@@ -60,7 +69,8 @@ def generate_chain_episodes(
     description kind that singles it out (kinds in turn over all goals); consecutive goals lie in
     different rooms; the start is a free cell (clearance >= robot radius + 0.1 m) outside the
     first goal's room from which every goal's success region can be reached. Everything follows
-    from ``generator_seed``.
+    from ``generator_seed``. ``explore_steps`` > 0 makes them "explore, then fetch" episodes: that
+    many steps of exploration before the first goal is revealed, then ``steps_per_goal`` per goal.
 
     Raises:
         ValueError: a scene without rooms, an unknown split group, or a chain length < 2.
@@ -131,17 +141,17 @@ def generate_chain_episodes(
                 episodes.append(Episode(
                     episode_id=f"{id_prefix}-{len(episodes):04d}", scene=rel, scene_seed=scene.seed, instruction=instruction,
                     goals=tuple(goals), start_pose=(round(start[0], 3), round(start[1], 3), round(yaw, 4)),
-                    max_steps=STEPS_PER_GOAL * length, description_kind=None,
+                    max_steps=explore_steps + steps_per_goal * length, description_kind=None, explore_steps=explore_steps,
                 ))
                 break
     return EpisodeSet("object_search", int(generator_seed), tuple(episodes))
 
 
 def chain_file_text(apartments: dict[str, str], *, per_scene: int, generator_seed: int, id_prefix: str,
-                    goal_groups: tuple[str, ...] | None = None) -> str:
+                    goal_groups: tuple[str, ...] | None = None, **options) -> str:
     """The text of a chain episode file drawn in ``apartments`` (path relative to ``scenes/`` ->
-    scene file text, in order; :func:`generate_chain_episodes`), for generating scripts that
-    write the apartments in the same run."""
+    scene file text, in order; :func:`generate_chain_episodes` with ``options``), for generating
+    scripts that write the apartments in the same run."""
     with tempfile.TemporaryDirectory() as tmp:  # the generator reads scene files
         root = Path(tmp)
         paths = []
@@ -150,7 +160,7 @@ def chain_file_text(apartments: dict[str, str], *, per_scene: int, generator_see
             (root / rel).write_text(text)
             paths.append(root / rel)
         eps = generate_chain_episodes(paths, per_scene=per_scene, generator_seed=generator_seed, scenes_root=root,
-                                      id_prefix=id_prefix, goal_groups=goal_groups)
+                                      id_prefix=id_prefix, goal_groups=goal_groups, **options)
     return episodes_text(eps)
 
 

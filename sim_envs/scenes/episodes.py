@@ -18,8 +18,9 @@ Version 2 adds an optional per-episode ``description_kind``: how the instruction
 (one of :data:`sim_envs.scenes.descriptions.DESCRIPTION_KINDS`: ``name``, ``synonym``,
 ``attribute``, ``function``, ``parent``), so reports can split by it; and per goal, optional ``description`` (the phrase that names the
 object, "the coffee mug") and ``description_kind`` (rearrangement episodes name one or two goals,
-each with the same kind as the episode's). A file whose episodes and goals
-carry no ``description_kind`` or ``description`` is written as version 1, byte for byte as before, and version 1
+each with the same kind as the episode's), and for object search an optional ``explore_steps``
+(an exploration budget before the first goal is revealed). A file whose episodes and goals
+carry none of these is written as version 1, byte for byte as before, and version 1
 files load as before.
 """
 
@@ -94,6 +95,10 @@ class Episode:
     description_kind: str | None = None
     """How ``instruction`` names the goal (a :data:`~sim_envs.scenes.descriptions.DESCRIPTION_KINDS`
     entry); None: not recorded (version 1 episodes)."""
+    explore_steps: int = 0
+    """Object search only ("explore, then fetch"): steps of exploration before the first goal is
+    revealed (the observation's ``goal`` is :data:`conceptfusion.tasks.EXPLORE_GOAL` until then);
+    part of ``max_steps``. 0: the goal is shown from the start."""
 
     def to_json(self) -> dict:
         goals = [g.to_json() for g in self.goals]
@@ -102,6 +107,7 @@ class Episode:
             "instruction": self.instruction, "goals": goals,
             "start_pose": list(self.start_pose) if self.start_pose is not None else None, "max_steps": self.max_steps,
             **({"description_kind": self.description_kind} if self.description_kind is not None else {}),
+            **({"explore_steps": self.explore_steps} if self.explore_steps else {}),
         }
 
 
@@ -115,7 +121,8 @@ class EpisodeSet:
 
     def header(self) -> dict:
         version = 2 if any(
-            e.description_kind is not None or any(g.description is not None or g.description_kind is not None for g in e.goals)
+            e.description_kind is not None or e.explore_steps
+            or any(g.description is not None or g.description_kind is not None for g in e.goals)
             for e in self.episodes
         ) else 1
         return {"format": FORMAT, "version": version, "task": self.task, "generator_seed": self.generator_seed}
@@ -145,7 +152,8 @@ def _resolve_scene_cached(ref: str, scene_seed: int, root: str) -> Scene:
     raise MissingFileError(f"scene {ref!r}: no file {ref}.json under {base}, and only tabletop-NNNN ids can be generated")
 
 
-_EPISODE_FIELDS = ("episode_id", "scene", "scene_seed", "instruction", "goals", "start_pose", "max_steps", "description_kind")
+_EPISODE_FIELDS = ("episode_id", "scene", "scene_seed", "instruction", "goals", "start_pose", "max_steps", "description_kind",
+                   "explore_steps")
 _HEADER_FIELDS = ("format", "version", "task", "generator_seed")
 
 
@@ -212,10 +220,15 @@ def _parse_episode(d, task: str, where: str) -> Episode:
     kind = d.get("description_kind")
     if kind is not None and kind not in DESCRIPTION_KINDS:
         raise EpisodeFormatError(f"{where}: 'description_kind' expected null or one of {DESCRIPTION_KINDS}, got {kind!r}")
+    explore = d.get("explore_steps", 0)
+    if not _is_int(explore) or not 0 <= explore < max_steps:
+        raise EpisodeFormatError(f"{where}: 'explore_steps' expected an integer in [0, max_steps) = [0, {max_steps}), got {explore!r}")
+    if explore and task != "object_search":
+        raise EpisodeFormatError(f"{where}: 'explore_steps' is for object_search episodes, got it in a {task!r} file")
     return Episode(
         episode_id=_field(d, "episode_id", str, where), scene=_field(d, "scene", str, where),
         scene_seed=scene_seed, instruction=_field(d, "instruction", str, where),
-        goals=tuple(goals), start_pose=pose, max_steps=max_steps, description_kind=kind,
+        goals=tuple(goals), start_pose=pose, max_steps=max_steps, description_kind=kind, explore_steps=explore,
     )
 
 
