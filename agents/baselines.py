@@ -20,6 +20,7 @@ from agents.concept_map import ConceptMapper, privileged_labels
 from agents.navigator import search_action
 from agents.pusher import push_action
 from conceptfusion.cameras import world_points
+from conceptfusion.tasks import EXPLORE_GOAL
 
 __all__ = ["RandomPusher", "RandomWalker", "FrameSearcher"]
 
@@ -113,8 +114,8 @@ class FrameSearcher:
         self.mapper.integrate(observation, segmentation=(info or {}).get("segmentation") if self.privileged else None)
         self._steps += 1
         obstacles = self._obstacles(observation)
-        res = self.mapper.locate(self._goal)
-        if res.found:
+        res = self.mapper.locate(self._goal) if self._goal != EXPLORE_GOAL else None
+        if res is not None and res.found:
             pts = res.best.points_n3[:, :2]
             if np.min(np.linalg.norm(pts - pose[:2], axis=1)) <= self.standoff:
                 return search_action(stop=True)

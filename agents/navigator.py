@@ -17,6 +17,9 @@ In a multi-goal search (the observation's ``goal`` changes after a stop) it keep
 plans for the new goal at once: what it saw while looking for the earlier goals answers the
 query, and only the goal's own state (sightings, presumption, its step count) starts again. With
 ``look_again`` (the map-free twin) it looks around first and explores again what it saw before.
+An exploration phase before the first goal (the goal reads
+:data:`~conceptfusion.tasks.EXPLORE_GOAL`, "explore, then fetch") is frontier exploration with
+no query; the first real goal then counts as the next goal.
 
 Observations: ``rgb``, ``depth``, ``K``, ``cam_to_world`` (posed RGB-D), ``base_pose`` (x, y,
 yaw odometry) and ``goal`` (text). Actions: ``[linear m/s, angular rad/s, stop]`` (stop > 0.5
@@ -36,6 +39,8 @@ from scipy import ndimage
 from agents.concept_map import ConceptMapper, privileged_labels
 from agents.frontier import choose_frontier, find_frontiers
 from conceptfusion.cameras import world_points
+from conceptfusion.map.query import QueryResult
+from conceptfusion.tasks import EXPLORE_GOAL
 from planners.occupancy import GridConfig, build_occupancy_grid, nearest_free_cell, reachable_goal_near
 from planners.ompl_2d import BasePlannerConfig, plan_base_path
 from planners.replan import check_path_blocked
@@ -297,8 +302,12 @@ class MapNavigator:
 
     def _locate(self):
         """The map's answer for the goal, without regions centred within ``reject_radius`` of a
-        rejected sighting (``found`` False when none is left)."""
+        rejected sighting (``found`` False when none is left). While exploring (the goal reads
+        :data:`~conceptfusion.tasks.EXPLORE_GOAL`) nothing is asked: nothing is found."""
         c = self.config
+        if self._goal == EXPLORE_GOAL:
+            return QueryResult(False, [], np.zeros(0, np.float32), np.zeros(0, np.float32), np.zeros(0, np.float32),
+                               reason="exploring: no goal yet")
         if self._presumes and (self._steps - self._goal_start >= c.presume_after or self._exhausted):
             found = self.mapper.locate_present(self._goal)
             presumed = found.extras.get("presumed")
@@ -375,6 +384,10 @@ class MapNavigator:
         if target is None:
             frontier = choose_frontier(find_frontiers(self._frontier_grid(grid), start, inflated=inflated), start, self._visited)
             if frontier is None:
+                if self._goal == EXPLORE_GOAL:
+                    self._note("exploring: no frontier left, looking around until a goal is given")
+                    self._phase, self._turned = "look", 0.0
+                    return search_action(0.0, self.config.look_angular)
                 if self._presumes and not self._exhausted:
                     self._exhausted = True
                     self._note("no goal and no frontier left: presuming the goal present")

@@ -1,8 +1,8 @@
 """The headline figures: measured once on the sealed test set, kept with the records they come from.
 
 ``python -m harness.report.headline RUN... --write`` reads the records of run folders over the
-sealed suites (``rearrange-v2``, ``search-v2``, ``chain-v2``, each with ``--limit`` of its whole
-file), refuses records of any other episode file, and writes:
+sealed suites (``rearrange-v2``, ``search-v2``, ``chain-v2``, ``fetch-v2``, each with ``--limit``
+of its whole file), refuses records of any other episode file, and writes:
 
 - ``harness/data/sealed/records.jsonl``: the records, stripped to what the figures need
   (suite, agent, encoder, episode, seed, status, success and the chain positions, the goal's split
@@ -34,7 +34,7 @@ from sim_envs.scenes.sealed import MANIFEST_NAME, SEALED_FOLDER
 
 __all__ = ["SEALED_SUITES", "DATA_DIR", "RECORDS_FILE", "MEASURED_FILE", "strip_record", "headline", "headline_table", "main"]
 
-SEALED_SUITES = {"rearrange-v2": 160, "search-v2": 150, "chain-v2": 30}
+SEALED_SUITES = {"rearrange-v2": 160, "search-v2": 150, "chain-v2": 30, "fetch-v2": 30}
 """The suites measured on the sealed set, with their whole size."""
 DATA_DIR = Path(__file__).resolve().parents[1] / "data" / "sealed"
 RECORDS_FILE = DATA_DIR / "records.jsonl"

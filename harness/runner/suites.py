@@ -12,7 +12,10 @@ Episode suites roll agents through environment episodes (:mod:`harness.runner.ta
   test set (``scenes/sealed-v2/search-episodes-v2.jsonl``, 150 episodes);
 * ``chain-v2``: multi-goal search in the same apartments (``scenes/sealed-v2/chain-episodes-v2.jsonl``,
   30 chains of 2, 3 and 4 goals revealed one at a time; success per position in the chain:
-  ``reached_k``, the first k goals reached in a row).
+  ``reached_k``, the first k goals reached in a row);
+* ``fetch-v2``: "explore, then fetch" in the other sealed apartments
+  (``scenes/sealed-v2/fetch-episodes-v2.jsonl``, 30 episodes: 200 steps of exploration, then 2-4
+  goals one at a time with 150 steps each; not a default suite).
 
 The v2 suites' agents come in matched pairs: each map-equipped agent beside its map-free twin
 (``twin-pusher``, ``twin-navigator``: the same views, exploration, planner and rules, no concept
@@ -196,6 +199,13 @@ SUITES: dict[str, Suite] = {
             task="object_search", episodes_file=SEALED_FOLDER / "chain-episodes-v2.jsonl",
             agents=("map-navigator", "twin-navigator", "random-walker"),
             env_kwargs=dict(SEARCH_V2_ENV), default_encoder="embedded-v2", limit=CHAIN_V2_LIMIT,
+        ),
+        Suite(
+            "fetch-v2", "episodes",
+            "explore, then fetch (sealed set): an exploration budget, then 2-4 goals revealed one at a time; success per "
+            "position (reached_k)",
+            task="object_search", episodes_file=SEALED_FOLDER / "fetch-episodes-v2.jsonl",
+            agents=("map-navigator", "twin-navigator", "random-walker"), env_kwargs=dict(SEARCH_V2_ENV), default_encoder="embedded-v2",
         ),
         Suite("query", "maps", "text, image and click query localisation over fused tabletop maps (3D mIoU, detection accuracy)"),
         Suite("query-open", "maps",

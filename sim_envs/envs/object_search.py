@@ -18,6 +18,7 @@ from gymnasium import spaces
 
 from conceptfusion.errors import EnvStateError, SimError
 from conceptfusion.names import did_you_mean
+from conceptfusion.tasks import EXPLORE_GOAL
 from planners.geodesic import geodesic_to_goal
 from sim_envs.envs.checks import (
     EpisodeLifecycle, check_action, check_bool, check_episode, check_episode_set, check_fovy, check_image_size, check_int, check_number,
@@ -66,6 +67,11 @@ class ObjectSearchEnv(EpisodeLifecycle, LastFrameRendering, gym.Env):
     ``goals_reached`` (in a row) of ``chain_length``; SPL uses the sum of the legs' shortest
     paths, each from where the base stopped for the previous goal. ``max_steps`` is the whole
     chain's budget.
+
+    **Explore, then fetch** (an episode with ``explore_steps``): for that many steps the
+    observation's ``goal`` is :data:`conceptfusion.tasks.EXPLORE_GOAL` and ``stop`` is ignored (the
+    base stands still); then the first goal is revealed and the episode goes on as above, its
+    SPL over the path driven from there (``info["exploring"]`` says which phase a step is in).
 
     **Actions** ``Box(3)``: ``[linear m/s in [-0.3, 0.6], angular rad/s in [-1.5, 1.5], stop]``;
     ``stop > 0.5`` ends the episode. Each step applies the command for ``control_dt`` seconds
@@ -224,6 +230,7 @@ class ObjectSearchEnv(EpisodeLifecycle, LastFrameRendering, gym.Env):
         self._pose = np.array([x, y, yaw], np.float64)
         self._steps, self._path_length, self._collisions = 0, 0.0, 0
         self._goal_k, self._reached, self._shortest = 0, 0, 0.0
+        self._exploring = episode.explore_steps > 0
         self._set_goal(0)
         box = self._goal_box
         self._max_steps = int(self._max_steps_override or episode.max_steps)
@@ -252,7 +259,10 @@ class ObjectSearchEnv(EpisodeLifecycle, LastFrameRendering, gym.Env):
         self._shortest += geodesic_to_goal(self._free, self._occ.origin, self._occ.cell, tuple(self._pose[:2]), d <= self.success_distance)
 
     def _goal_text(self) -> str:
-        """What the observation's ``goal`` says: the instruction, or a chain's current goal."""
+        """What the observation's ``goal`` says: the exploration phrase, the instruction, or a
+        chain's current goal."""
+        if self._exploring:
+            return EXPLORE_GOAL
         if len(self.episode.goals) > 1:
             return self.episode.goals[self._goal_k].description
         return self.episode.instruction
@@ -264,8 +274,8 @@ class ObjectSearchEnv(EpisodeLifecycle, LastFrameRendering, gym.Env):
         self._check_step()
         a = np.clip(a, _ACTION_LOW, _ACTION_HIGH)
         self._steps += 1
-        stop = a[2] > 0.5
-        if not stop:
+        stop = a[2] > 0.5 and not self._exploring
+        if a[2] <= 0.5:
             sub = 10
             dt = self.control_dt / sub
             for _ in range(sub):
@@ -278,6 +288,9 @@ class ObjectSearchEnv(EpisodeLifecycle, LastFrameRendering, gym.Env):
                     break
                 self._path_length += math.dist((x, y), nxt)
                 self._pose = np.array([nxt[0], nxt[1], yaw_new])
+        if self._exploring and self._steps >= self.episode.explore_steps:  # the budget is spent: the first goal
+            self._exploring, self._shortest, self._path_length = False, 0.0, 0.0
+            self._set_goal(0)
         obs, info = self._observe()
         reached = bool(stop and info["distance_to_goal"] <= self.success_distance)
         done = stop and not (reached and self._goal_k + 1 < len(self.episode.goals))
@@ -341,6 +354,7 @@ class ObjectSearchEnv(EpisodeLifecycle, LastFrameRendering, gym.Env):
             "spl": 0.0,
             "goals_reached": self._reached,
             "chain_length": len(self.episode.goals),
+            "exploring": self._exploring,
         }
         return obs, info
 

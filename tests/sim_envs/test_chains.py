@@ -165,3 +165,64 @@ def test_the_twin_looks_again_for_a_later_goal():
     grid = build_occupancy_grid(pts, GridConfig(resolution=0.05, obstacle_z_min=0.08, obstacle_z_max=1.6, padding=1.0))
     narrowed = nav._frontier_grid(grid)
     assert narrowed.known_hw.sum() == narrowed.occupied_hw.sum() < grid.known_hw.sum()
+
+
+FETCH_CAL = SCENES_ROOT / "calibration-v2" / "fetch-episodes-v2.jsonl"
+
+
+def test_explore_then_fetch_shows_the_goals_only_after_the_exploration_budget():
+    from conceptfusion.tasks import EXPLORE_GOAL
+
+    ep = dataclasses.replace(load_episodes(FETCH_CAL).episodes[0], explore_steps=5)
+    env = _env(ep)
+    obs, info = env.reset(seed=0, options={"episode": ep})
+    assert obs["goal"] == EXPLORE_GOAL and info["exploring"]
+    for k in range(1, 5):  # a stop while exploring is ignored: the base stands still, the episode goes on
+        obs, reward, term, trunc, info = env.step(np.array([0.3, 0.0, 1.0 if k == 1 else 0.0]))
+        assert obs["goal"] == EXPLORE_GOAL and info["exploring"] and not term and reward == 0.0
+    assert info["path_length"] > 0
+    obs, reward, term, trunc, info = env.step(np.array([0.0, 0.5, 0.0]))  # the fifth step spends the budget
+    assert obs["goal"] == ep.goals[0].description and not info["exploring"] and info["goal_index"] == 0
+    assert info["path_length"] == 0.0 and info["shortest_path_length"] > 0  # SPL counts from here
+    env.close()
+
+
+def test_explore_steps_is_checked_in_episode_files(tmp_path):
+    root, path = _copy(tmp_path, lambda ep: ep.update(explore_steps=ep["max_steps"]))
+    with pytest.raises(EpisodeFormatError, match=r"line 2: 'explore_steps' expected an integer in \[0, max_steps\) = \[0, 500\), got 500"):
+        load_episodes(path, scenes_root=root)
+    tab = tmp_path / "tab.jsonl"
+    lines = (SCENES_ROOT / "tabletop-v2" / "episodes-v2.jsonl").read_text().splitlines()[:2]
+    rec = json.loads(lines[1])
+    rec["explore_steps"] = 2
+    tab.write_text(lines[0] + "\n" + json.dumps(rec) + "\n")
+    with pytest.raises(EpisodeFormatError, match="'explore_steps' is for object_search episodes"):
+        load_episodes(tab)
+    # a file without any keeps writing as before; one with them round-trips
+    from sim_envs.scenes.episodes import episodes_text
+
+    eps = load_episodes(FETCH_CAL)
+    assert all(e.explore_steps == 200 for e in eps.episodes) and episodes_text(eps) == FETCH_CAL.read_text()
+
+
+class _NoQueries(_Mapper):
+    def locate(self, text):
+        raise AssertionError(f"asked the map for {text!r} while exploring")
+
+    locate_present = locate
+
+
+def test_the_navigator_explores_without_asking_its_map_until_a_goal_is_given():
+    from conceptfusion.tasks import EXPLORE_GOAL
+
+    mapper = _NoQueries()
+    # a closed box: walls all round, a known floor inside, so no frontier is left
+    walls = [[x, y, 0.5] for x in np.arange(-1, 1.01, 0.05) for y in (-1.0, 1.0)]
+    walls += [[x, y, 0.5] for y in np.arange(-1, 1.01, 0.05) for x in (-1.0, 1.0)]
+    floor = [[x, y, 0.0] for x in np.arange(-0.95, 0.96, 0.05) for y in np.arange(-0.95, 0.96, 0.05)]
+    mapper.map.points = np.array(walls + floor)
+    nav = MapNavigator(mapper, NavigatorConfig())
+    nav._goal = EXPLORE_GOAL
+    assert not nav._locate().found and nav._locate().reason == "exploring: no goal yet"
+    action = nav._plan(np.array([0.0, 0.0, 0.0]))  # an empty map: no frontier, so it looks around
+    assert action[2] == 0.0 and action[1] > 0 and "no frontier left, looking around" in nav.log[-1]
