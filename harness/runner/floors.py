@@ -74,6 +74,7 @@ when anything differs from the committed floors file.
 from __future__ import annotations
 
 import argparse
+import hashlib
 import json
 import sys
 import uuid
@@ -96,7 +97,7 @@ __all__ = [
     "CONFIDENCE", "DROP", "POWER", "MAX_EPISODES", "CEILING_AGENTS", "FLOORS_FORMAT", "FLOORS_VERSION", "RECORDS_DIR",
     "Bound", "floor_count", "ceiling_count", "detection_probability", "false_alarm_probability",
     "expected_false_alarm", "clopper_pearson", "derive_bound", "regression_suites", "calibration_suite",
-    "records_file", "load_calibration", "derive_suite", "derive_floors", "calibrate", "check", "main",
+    "records_file", "load_calibration", "derive_suite", "derive_floors", "calibrate", "check", "replay_sample", "main",
 ]
 
 CONFIDENCE = 0.95
@@ -464,6 +465,33 @@ def calibrate(suites: list[Suite] | None = None, *, work_dir: str | Path = "runs
     data = derive_floors(folder)
     atomic_write_text(floors_file, _floors_text(data))
     return data
+
+
+def replay_sample(suite: Suite, per_agent: int = 2, folder: Path = RECORDS_DIR, *, agents: tuple[str, ...] | None = None) -> list[str]:
+    """Run again ``per_agent`` committed calibration episodes of each agent of ``suite`` (the first
+    and, spread by a hash of the episode ids, others) in this process and compare their outcome
+    with the committed records: ``status`` and every metric must come back exactly. Returns the
+    differences (empty: the records are still what the code does), naming agent, episode, field,
+    committed and new value. Committed records that the code no longer reproduces make every
+    floor derived from them stale."""
+    from harness.runner.tasks import run_episode
+
+    cal = calibration_suite(suite)
+    committed = [json.loads(line) for line in records_file(suite, folder).read_text().splitlines() if line.strip()]
+    jobs = {(j.agent, j.episode.episode_id): j for j in episode_jobs(cal, RunConfig(suites=(suite.name,), backend="serial"), "replay")}
+    problems = []
+    for agent in agents or suite.agents:
+        mine = sorted((r for r in committed if r["agent"] == agent), key=lambda r: r["episode_id"])
+        picked = mine[:1] + sorted(mine[1:], key=lambda r: hashlib.sha256(r["episode_id"].encode()).hexdigest())[: per_agent - 1]
+        for rec in picked:
+            got = run_episode(jobs[(agent, rec["episode_id"])])
+            where = f"{suite.name} {agent} {rec['episode_id']}"
+            if got["status"] != rec["status"]:
+                problems.append(f"{where}: status {rec['status']!r} committed, {got['status']!r} now ({(got.get('error') or '')[:120]})")
+            for key in sorted(set(rec["metrics"]) | set(got["metrics"])):
+                if rec["metrics"].get(key) != got["metrics"].get(key):
+                    problems.append(f"{where}: metrics.{key} {rec['metrics'].get(key)!r} committed, {got['metrics'].get(key)!r} now")
+    return problems
 
 
 def _diff(want, got, path: str = "") -> list[str]:

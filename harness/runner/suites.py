@@ -62,7 +62,7 @@ from sim_envs.scenes.chain_episodes import check_chains_reachable
 from sim_envs.scenes.sealed import SEALED_FOLDER, is_sealed_file, verify_sealed
 from sim_envs.scenes.splits import splits
 
-__all__ = ["Suite", "SUITES", "get_suite", "DEFAULT_SUITES", "REARRANGE_V2_ENV", "SEARCH_V2_LIMIT", "CHAIN_V2_LIMIT",
+__all__ = ["Suite", "SUITES", "get_suite", "DEFAULT_SUITES", "REARRANGE_V2_ENV", "REARRANGE_V2_LIMIT", "SEARCH_V2_LIMIT", "CHAIN_V2_LIMIT",
            "FRAME_SEARCHER_LIMIT", "suite_encoder", "suite_episodes", "FLOORS_FILE",
            "calibrated_bounds", "suite_over"]
 
@@ -148,16 +148,20 @@ episodes (``map-navigator``, ``embedded-v2``): on the open-world validation sear
 against 20 at 160x120 (17 gained, 5 lost); on the first 90 calibration searches 54 against 44
 (the default proposals at 320x240, which stop at 77-pixel regions: validation 21, calibration 42)."""
 
-SEARCH_V2_LIMIT = 40
-"""Episodes ``search-v2`` runs unless ``--limit`` says otherwise: the first 40 of its 150 (goals
+REARRANGE_V2_LIMIT = 64
+"""Episodes ``rearrange-v2`` runs unless ``--limit`` says otherwise: the first 64 of its 160, so
+that the default comparison fits its time; ``--limit 160`` runs them all (the headline figures)."""
+
+SEARCH_V2_LIMIT = 16
+"""Episodes ``search-v2`` runs unless ``--limit`` says otherwise: the first 16 of its 150 (goals
 named by name, synonym, attribute, function in turn), so that the default comparison fits its
 time; ``--limit 150`` runs them all (the headline figures)."""
 
-CHAIN_V2_LIMIT = 12
-"""Chains ``chain-v2`` runs unless ``--limit`` says otherwise: the first 12 of its 30 (four each of
+CHAIN_V2_LIMIT = 3
+"""Chains ``chain-v2`` runs unless ``--limit`` says otherwise: the first 3 of its 30 (one each of
 2, 3 and 4 goals); ``--limit 30`` runs them all (the headline figures)."""
 
-FRAME_SEARCHER_LIMIT = 20
+FRAME_SEARCHER_LIMIT = 8
 """Episodes the weak reactive ``frame-searcher`` runs in ``search-v2`` unless ``--limit`` says
 otherwise: the slowest agent (it segments every frame) and a reference, not the headline
 comparison (which is the map navigator against its twin)."""
@@ -176,7 +180,7 @@ SUITES: dict[str, Suite] = {
             "tabletop rearrangement on library tabletops (evaluation seeds): goals named by name, synonym, attribute or function",
             task="tabletop_rearrange", episodes_file=SEALED_FOLDER / "rearrange-episodes-v2.jsonl",
             agents=("map-pusher", "twin-pusher", "frame-pusher", "random-pusher"),
-            env_kwargs=dict(REARRANGE_V2_ENV), default_encoder="embedded-v2",
+            env_kwargs=dict(REARRANGE_V2_ENV), default_encoder="embedded-v2", limit=REARRANGE_V2_LIMIT,
         ),
         Suite(
             "search", "episodes", "object search in apartments: stop within 1 m of the described object",

@@ -122,7 +122,7 @@ def test_v1_episode_files_stay_version_1_and_bad_kinds_are_refused(tmp_path):
         load_episodes(bad, check_scenes=False)
 
 
-def test_search_v2_suite_is_the_default_search_and_runs_its_first_40_sealed_episodes():
+def test_search_v2_suite_is_the_default_search_and_runs_its_first_16_sealed_episodes():
     from harness.runner.run import RunConfig, episode_jobs
     from sim_envs.scenes.sealed import SEALED_FOLDER
 
@@ -131,15 +131,15 @@ def test_search_v2_suite_is_the_default_search_and_runs_its_first_40_sealed_epis
     assert "search-v2" in DEFAULT_SUITES and "search" not in DEFAULT_SUITES
     eps = load_episodes(suite.episodes_file).episodes
     jobs = episode_jobs(suite, RunConfig(suites=("search-v2",), agents=("random-walker",)), "t")
-    assert [j.episode.episode_id for j in jobs] == [e.episode_id for e in eps[:40]]
-    kinds = [e.description_kind for e in eps[:40]]
-    assert {k: kinds.count(k) for k in set(kinds)} == {"name": 10, "synonym": 10, "attribute": 10, "function": 10}
+    assert [j.episode.episode_id for j in jobs] == [e.episode_id for e in eps[:16]]
+    kinds = [e.description_kind for e in eps[:16]]
+    assert {k: kinds.count(k) for k in set(kinds)} == {"name": 4, "synonym": 4, "attribute": 4, "function": 4}
     every = episode_jobs(suite, RunConfig(suites=("search-v2",), agents=("random-walker",), limit=150), "t")
     assert len(every) == len(eps) == 150
     # the weak reactive reference runs a shorter slice by default, every episode with --limit
     default = episode_jobs(suite, RunConfig(suites=("search-v2",)), "t")
     counts = {a: sum(j.agent == a for j in default) for a in suite.agents}
-    assert counts == {"map-navigator": 40, "twin-navigator": 40, "frame-searcher": 20, "random-walker": 40}
+    assert counts == {"map-navigator": 16, "twin-navigator": 16, "frame-searcher": 8, "random-walker": 16}
 
 
 def test_oracle_solves_a_v2_episode():
