@@ -300,20 +300,19 @@ class ConceptMapper:
         (``semantic_views``) the points near a kept frame's featured points. Shape: (N,) bool."""
         if not self.config.semantic_views:
             return self.map.has_feature
-        out = np.zeros(len(self.map), bool)
-        for view in self._views:
-            near, _ = self._near_view(view, view.has_feature)
-            out |= near
-        return out
+        featured = [view.points[view.has_feature] for view in self._views]
+        return self._near(np.concatenate(featured) if featured else np.zeros((0, 3)))[0]
 
-    def _near_view(self, view: PointFusionMap, mask_m: np.ndarray | None = None) -> tuple[np.ndarray, np.ndarray]:
-        """Map points within ``1.5 * voxel_size`` of ``view``'s points (those of ``mask_m``), and
-        the index of the nearest such view point for each. Shape: (N,) bool, (N,) int64 (-1 where
-        not near)."""
+    def _near_view(self, view: PointFusionMap) -> tuple[np.ndarray, np.ndarray]:
+        """Map points within ``1.5 * voxel_size`` of ``view``'s points, and the index of the nearest
+        such view point for each. Shape: (N,) bool, (N,) int64 (-1 where not near)."""
+        return self._near(view.points)
+
+    def _near(self, vpts: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
+        """Map points within ``1.5 * voxel_size`` of points ``vpts``, and the index into ``vpts`` of
+        the nearest for each. Shape: ``vpts`` (M, 3) -> (N,) bool, (N,) int64 (-1 where not near)."""
         r = 1.5 * self.config.voxel_size
         pts = self.map.points
-        vpts = view.points if mask_m is None else view.points[mask_m]
-        vidx = np.arange(len(view)) if mask_m is None else np.flatnonzero(mask_m)
         near = np.zeros(len(pts), bool)
         nearest = np.full(len(pts), -1, np.int64)
         if len(vpts) == 0 or len(pts) == 0:
@@ -324,7 +323,7 @@ class ConceptMapper:
             d, j = cKDTree(vpts).query(pts[box], distance_upper_bound=r)
             ok = np.isfinite(d)
             near[box[ok]] = True
-            nearest[box[ok]] = vidx[j[ok]]
+            nearest[box[ok]] = j[ok]
         return near, nearest
 
     def _to_map(self, view: PointFusionMap, res: QueryResult) -> QueryResult:

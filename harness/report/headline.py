@@ -14,7 +14,8 @@ Figures, per suite and encoder: every agent's success with its 95% Wilson interv
 agent minus its matched twin, paired per episode (bootstrap interval, exact McNemar); the chain
 suite's success per position (``reached_k``: the first k goals in a row); and, per agent, success
 by the goal's split group (seen, held-out instance, held-out category). The README's headline
-table is :func:`headline_table` of this file; a test recomputes the file from the records.
+tables are :func:`headline_table`, :func:`positions_table` and :func:`agents_table` of this file;
+a test recomputes the file from the records.
 """
 
 from __future__ import annotations
@@ -32,7 +33,8 @@ from harness.report.stats import metric_value, paired_comparison, wilson_interva
 from harness.runner.results import latest_records, load_results
 from sim_envs.scenes.sealed import MANIFEST_NAME, SEALED_FOLDER
 
-__all__ = ["SEALED_SUITES", "DATA_DIR", "RECORDS_FILE", "MEASURED_FILE", "strip_record", "headline", "headline_table", "main"]
+__all__ = ["SEALED_SUITES", "DATA_DIR", "RECORDS_FILE", "MEASURED_FILE", "strip_record", "headline", "headline_table", "agents_table",
+           "positions_table", "main"]
 
 SEALED_SUITES = {"rearrange-v2": 160, "search-v2": 150, "chain-v2": 30, "fetch-v2": 30}
 """The suites measured on the sealed set, with their whole size."""
@@ -124,6 +126,38 @@ def headline_table(measured: dict) -> str:
     return "\n".join(rows)
 
 
+def _cell(s: dict) -> str:
+    return f"{s['successes']}/{s['n']} = {s['rate']:.2f} [{s['ci'][0]:.2f}, {s['ci'][1]:.2f}]"
+
+
+def agents_table(measured: dict) -> str:
+    """Every agent's success per suite and encoder (map agents, twins, weak and random references
+    and the privileged oracles, marked), Markdown."""
+    rows = ["| suite | agent | perception | success [95% CI] |", "|---|---|---|---|"]
+    for suite, by_enc in measured["figures"].items():
+        for enc, fig in by_enc.items():
+            for agent, entry in fig["agents"].items():
+                label = "ground truth (privileged)" if agent.startswith("oracle-") else "none" if agent.startswith("random-") else enc
+                if entry["privileged"] and not agent.startswith("oracle-"):
+                    label += " (privileged)"
+                rows.append(f"| `{suite}` | {agent} | {label} | {_cell(entry['success'])} |")
+    return "\n".join(rows)
+
+
+def positions_table(measured: dict) -> str:
+    """Multi-goal success per position in the chain (the first k goals reached in a row), Markdown."""
+    rows = ["| suite | agent | perception | 1 goal | 2 in a row | 3 in a row | 4 in a row |", "|---|---|---|---|---|---|---|"]
+    for suite, by_enc in measured["figures"].items():
+        for enc, fig in by_enc.items():
+            for agent, entry in fig["agents"].items():
+                if "positions" not in entry or agent.startswith(("oracle-", "random-")):
+                    continue
+                cells = [f"{p['successes']}/{p['n']} = {p['rate']:.2f}" for _, p in sorted(entry["positions"].items(), key=lambda kv: int(kv[0]))]
+                priv = " (privileged)" if entry["privileged"] else ""
+                rows.append(f"| `{suite}` | {agent} | {enc}{priv} | " + " | ".join(cells) + " |")
+    return "\n".join(rows)
+
+
 def _manifest_sha() -> str:
     return hashlib.sha256((SEALED_FOLDER / MANIFEST_NAME).read_bytes()).hexdigest()
 
@@ -150,7 +184,7 @@ def main(argv: list[str] | None = None) -> int:
         return 2
     measured = {"format": "cf-headline", "version": 1, "commit": args.commit or _commit(), "sealed_manifest_sha256": _manifest_sha(),
                 "figures": figures}
-    print(headline_table(measured))
+    print("\n\n".join((headline_table(measured), positions_table(measured), agents_table(measured))))
     if args.write:
         keep = sorted(latest_records(records), key=lambda r: (r["suite"], r["encoder"], r["agent"], r["episode_id"], r["seed"]))
         atomic_write_text(RECORDS_FILE, "".join(json.dumps(r, sort_keys=True) + "\n" for r in keep))

@@ -29,10 +29,9 @@ import numpy as np
 from planners.geodesic import geodesic_to_goal
 from sim_envs.assets.library import is_library_asset
 from sim_envs.scenes.descriptions import describe
-from sim_envs.scenes.episodes import SCENES_ROOT, Episode, EpisodeFormatError, EpisodeSet, Goal, episodes_text, resolve_scene
+from sim_envs.scenes.episodes import Episode, EpisodeFormatError, EpisodeSet, Goal, episodes_text, resolve_scene
 from sim_envs.scenes.floorplan import occupancy_grid
-from sim_envs.scenes.format import load_scene
-from sim_envs.scenes.search_episodes import goal_mask, room_of
+from sim_envs.scenes.search_episodes import apartment_grid, goal_mask, room_of
 from sim_envs.scenes.splits import SPLIT_GROUPS, object_group
 
 __all__ = ["CHAIN_LENGTHS", "STEPS_PER_GOAL", "FETCH_EXPLORE_STEPS", "FETCH_STEPS_PER_GOAL", "THEN", "chain_instruction", "generate_chain_episodes", "chain_file_text",
@@ -84,15 +83,7 @@ def generate_chain_episodes(
     episodes: list[Episode] = []
     described = 0
     for path in scene_files:
-        path = Path(path)
-        scene = load_scene(path)
-        if not scene.rooms:
-            raise ValueError(f"{path}: expected a household scene with rooms")
-        rel = path.resolve().relative_to(Path(scenes_root or SCENES_ROOT).resolve()).as_posix()
-        occ = occupancy_grid(scene, cell=0.05)
-        clearance = occ.clearance()
-        free = clearance > robot_radius
-        starts = np.argwhere(clearance > robot_radius + 0.1)
+        scene, rel, occ, free, starts = apartment_grid(path, scenes_root=scenes_root, robot_radius=robot_radius)
         cx, cy = occ.centres()
         pool = [o for o in scene.objects
                 if is_library_asset(o.asset) and (goal_groups is None or object_group(o) in goal_groups)]

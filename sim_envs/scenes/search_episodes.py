@@ -25,7 +25,7 @@ from sim_envs.scenes.floorplan import occupancy_grid
 from sim_envs.scenes.format import Scene, load_scene
 from sim_envs.scenes.splits import SPLIT_GROUPS, object_group
 
-__all__ = ["generate_search_episodes", "default_search_episodes", "DEFAULT_SEARCH_FILE", "room_of", "goal_mask"]
+__all__ = ["generate_search_episodes", "default_search_episodes", "DEFAULT_SEARCH_FILE", "room_of", "goal_mask", "apartment_grid"]
 
 DEFAULT_SEARCH_FILE = SCENES_ROOT / "household" / "episodes-v1.jsonl"
 """The shipped object-search episodes."""
@@ -47,6 +47,26 @@ def goal_mask(occ, lo, hi, radius: float) -> np.ndarray:
     dx = np.maximum(np.maximum(lo[0] - cx, 0), cx - hi[0])
     dy = np.maximum(np.maximum(lo[1] - cy, 0), cy - hi[1])
     return np.hypot(dx, dy) <= radius
+
+
+def apartment_grid(path, *, scenes_root=None, robot_radius: float = 0.25):
+    """What an episode generator needs of an apartment file: the scene, its path relative to
+    ``scenes_root`` (default: the shipped ``scenes/``), its 5 cm occupancy grid, the free cells for
+    a base of ``robot_radius`` and the cells a start may take (clearance >= radius + 0.1 m).
+
+    Shape: returns ``(scene, rel, occ, free (H, W) bool, starts (K, 2) row/col)``.
+
+    Raises:
+        ValueError: a scene without rooms.
+    """
+    path = Path(path)
+    scene = load_scene(path)
+    if not scene.rooms:
+        raise ValueError(f"{path}: expected a household scene with rooms")
+    rel = path.resolve().relative_to(Path(scenes_root or SCENES_ROOT).resolve()).as_posix()
+    occ = occupancy_grid(scene, cell=0.05)
+    clearance = occ.clearance()
+    return scene, rel, occ, clearance > robot_radius, np.argwhere(clearance > robot_radius + 0.1)
 
 
 def generate_search_episodes(
@@ -81,15 +101,7 @@ def generate_search_episodes(
     text_rng = np.random.default_rng(generator_seed + 1)
     episodes = []
     for path in scene_files:
-        path = Path(path)
-        scene = load_scene(path)
-        if not scene.rooms:
-            raise ValueError(f"{path}: expected a household scene with rooms")
-        rel = path.resolve().relative_to(Path(scenes_root or SCENES_ROOT).resolve()).as_posix()
-        occ = occupancy_grid(scene, cell=0.05)
-        clearance = occ.clearance()
-        free = clearance > robot_radius
-        starts = np.argwhere(clearance > robot_radius + 0.1)
+        scene, rel, occ, free, starts = apartment_grid(path, scenes_root=scenes_root, robot_radius=robot_radius)
         cx, cy = occ.centres()
         order = rng.permutation(len(scene.objects))
         made = 0

@@ -1,6 +1,5 @@
 """The online mapper: scan frames of a MuJoCo tabletop in, 3D object positions out."""
 
-import gymnasium as gym
 import numpy as np
 import pytest
 
@@ -13,20 +12,9 @@ from conceptfusion.perception.masks.registry import make_proposer
 from sim_envs.assets.objects import COLORS
 
 
-def _scan(seed=3, frames=8):
-    env = gym.make("cf/SceneScan-v0", num_frames=frames, width=160, height=120)
-    obs, info = env.reset(seed=seed)
-    out = [(obs, info)]
-    for _ in range(frames - 1):
-        obs, _, term, _, info = env.step(0)
-        out.append((obs, info))
-    env.close()
-    return out
-
-
 @pytest.fixture(scope="module")
-def scan():
-    return _scan()
+def scan(tabletop_scan):
+    return tabletop_scan(3, 8)
 
 
 def _unique_colour_objects(info):

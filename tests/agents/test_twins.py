@@ -1,6 +1,5 @@
 """The matched map-free twins: the same geometry and rules as the map agents, semantics per frame."""
 
-import gymnasium as gym
 import numpy as np
 import pytest
 
@@ -13,20 +12,9 @@ from conceptfusion.perception.encoders import ColorNameEncoder
 from conceptfusion.perception.featurizer import OracleFeaturizer
 
 
-def _scan(seed=3, frames=6):
-    env = gym.make("cf/SceneScan-v0", num_frames=frames, width=160, height=120)
-    obs, info = env.reset(seed=seed)
-    out = [(obs, info)]
-    for _ in range(frames - 1):
-        obs, _, _, _, info = env.step(0)
-        out.append((obs, info))
-    env.close()
-    return out
-
-
 @pytest.fixture(scope="module")
-def scan():
-    return _scan()
+def scan(tabletop_scan):
+    return tabletop_scan(3, 6)
 
 
 def _mapper(info, **config):

@@ -111,7 +111,10 @@ def test_every_builtin_agent_has_a_bound_that_can_fail_where_the_budget_allows_o
             cannot.add((suite.name, agent))
     builtin = {n for n, spec in AGENTS.items()  # not the agents other tests register from plugins
                if (spec.factory if isinstance(spec.factory, str) else spec.factory.__module__).startswith("agents.")}
-    assert len(builtin) == 8 and set(bounded) == builtin
+    # the matched twins have no calibrated bound yet: they are not in the v1 regression suites
+    twins = {n for n in builtin if AGENTS[n].twin_of}
+    assert twins == {"twin-navigator", "twin-pusher"}
+    assert len(builtin) == 10 and set(bounded) == builtin - twins
     assert {a for a, kinds in bounded.items() if "ceiling" in kinds} == set(floors.CEILING_AGENTS)
     assert cannot == {("regression-search", "frame-searcher")}  # the one the floors module documents
     embedded = get_suite("regression-rearrange-embedded")

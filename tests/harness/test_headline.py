@@ -47,6 +47,8 @@ def test_chain_positions_count_chains_long_enough(monkeypatch):
                                                                   "reached_4": False})]
     pos = hl.headline(recs)["chain-v2"]["embedded-v2"]["agents"]["map-navigator"]["positions"]
     assert {k: (v["successes"], v["n"]) for k, v in pos.items()} == {"1": (2, 3), "2": (1, 3), "3": (1, 2), "4": (0, 1)}
+    table = hl.positions_table({"figures": hl.headline(recs)})
+    assert "| `chain-v2` | map-navigator | embedded-v2 | 2/3 = 0.67 | 1/3 = 0.33 | 1/2 = 0.50 | 0/1 = 0.00 |" in table
 
 
 def test_a_slice_or_a_foreign_suite_is_no_headline(monkeypatch):
@@ -72,4 +74,5 @@ def test_committed_headline_is_recomputed_from_its_records_and_headlines_the_rea
     assert hl.headline(records) == measured["figures"]
     assert measured["sealed_manifest_sha256"] == hl._manifest_sha()
     readme = (hl.DATA_DIR.parents[2] / "README.md").read_text()
-    assert hl.headline_table(measured) in readme
+    for table in (hl.headline_table(measured), hl.positions_table(measured), hl.agents_table(measured)):
+        assert table in readme
