@@ -337,17 +337,18 @@ class ConceptMapper:
 
         regions = []
         r = 1.5 * self.config.voxel_size
+        scores = carry(res.scores_n)
         for reg in res.regions:
             mine = np.zeros(len(view), bool)
             mine[reg.indices_n] = True
             idx = np.flatnonzero(near & mine[np.maximum(nearest, 0)])
-            if idx.size == 0:  # no map point near it (cannot happen for a fused frame; kept safe)
+            if idx.size == 0:  # the map merged this region's points farther away: the map's points near the region
                 d, _ = cKDTree(reg.points_n3).query(self.map.points, distance_upper_bound=r)
                 idx = np.flatnonzero(np.isfinite(d))
             if idx.size:
-                regions.append(Region(points_n3=self.map.points[idx], scores_n=carry(res.scores_n)[idx], indices_n=idx))
+                regions.append(Region(points_n3=self.map.points[idx], scores_n=scores[idx], indices_n=idx))
         found = res.found and bool(regions)
-        return QueryResult(found, regions if found else [], carry(res.scores_n), carry(res.relative_n), carry(res.relevancy_n),
+        return QueryResult(found, regions if found else [], scores, carry(res.relative_n), carry(res.relevancy_n),
                            res.reason if found or not res.found else "no map point near the frame's answer", dict(res.extras))
 
     def _best_view(self, answer_on) -> QueryResult:
