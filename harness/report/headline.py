@@ -8,7 +8,8 @@ of its whole file), refuses records of any other episode file, and writes:
   (suite, agent, encoder, episode, seed, status, success and the chain positions, the goal's split
   group and the ``twin_of`` / ``uses_map`` / ``privileged`` marks);
 - ``harness/data/sealed/measured.json``: the figures (:func:`headline`) with the commit that
-  measured them and the sealed manifest's SHA-256.
+  measured them and the sealed manifest's SHA-256;
+- the README's headline tables, between its markers (:func:`readme_with_tables`).
 
 Figures, per suite and encoder: every agent's success with its 95% Wilson interval; each map
 agent minus its matched twin, paired per episode (bootstrap interval, exact McNemar); the chain
@@ -34,7 +35,7 @@ from harness.runner.results import latest_records, load_results
 from sim_envs.scenes.sealed import MANIFEST_NAME, SEALED_FOLDER
 
 __all__ = ["SEALED_SUITES", "DATA_DIR", "RECORDS_FILE", "MEASURED_FILE", "strip_record", "headline", "headline_table", "agents_table",
-           "positions_table", "main"]
+           "positions_table", "readme_with_tables", "main"]
 
 SEALED_SUITES = {"rearrange-v2": 160, "search-v2": 150, "chain-v2": 30, "fetch-v2": 30}
 """The suites measured on the sealed set, with their whole size."""
@@ -158,6 +159,26 @@ def positions_table(measured: dict) -> str:
     return "\n".join(rows)
 
 
+README_START = "<!-- headline tables: python -m harness.report.headline RUN... --write -->"
+README_END = "<!-- end of the headline tables -->"
+
+
+def readme_with_tables(readme: str, measured: dict) -> str:
+    """``readme`` with the text between :data:`README_START` and :data:`README_END` replaced by the
+    headline tables of ``measured``.
+
+    Raises:
+        HarnessError: the README lacks the markers.
+    """
+    try:
+        head, rest = readme.split(README_START, 1)
+        _, tail = rest.split(README_END, 1)
+    except ValueError:
+        raise HarnessError(f"README: expected the markers {README_START!r} and {README_END!r} around the headline tables") from None
+    tables = "\n\n".join((headline_table(measured), positions_table(measured), agents_table(measured)))
+    return f"{head}{README_START}\n{tables}\n{README_END}{tail}"
+
+
 def _manifest_sha() -> str:
     return hashlib.sha256((SEALED_FOLDER / MANIFEST_NAME).read_bytes()).hexdigest()
 
@@ -186,10 +207,17 @@ def main(argv: list[str] | None = None) -> int:
                 "figures": figures}
     print("\n\n".join((headline_table(measured), positions_table(measured), agents_table(measured))))
     if args.write:
+        readme = DATA_DIR.parents[2] / "README.md"
+        try:
+            text = readme_with_tables(readme.read_text(), measured)
+        except HarnessError as exc:
+            print(f"error: {exc}", file=sys.stderr)
+            return 2
+        atomic_write_text(readme, text)
         keep = sorted(latest_records(records), key=lambda r: (r["suite"], r["encoder"], r["agent"], r["episode_id"], r["seed"]))
         atomic_write_text(RECORDS_FILE, "".join(json.dumps(r, sort_keys=True) + "\n" for r in keep))
         atomic_write_text(MEASURED_FILE, json.dumps(measured, indent=1, sort_keys=True) + "\n")
-        print(f"wrote {RECORDS_FILE} ({len(keep)} records) and {MEASURED_FILE}")
+        print(f"wrote {RECORDS_FILE} ({len(keep)} records), {MEASURED_FILE} and the tables in {readme}")
     return 0
 
 

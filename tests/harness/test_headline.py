@@ -59,6 +59,16 @@ def test_a_slice_or_a_foreign_suite_is_no_headline(monkeypatch):
         hl.headline(recs + [_rec("search-v2-develop", "map-navigator", 0, True)])
 
 
+def test_the_readme_block_is_replaced_between_its_markers(monkeypatch):
+    figs = {"figures": hl.headline(_pair_records(monkeypatch))}
+    text = f"intro\n{hl.README_START}\nold table\n{hl.README_END}\nrest\n"
+    out = hl.readme_with_tables(text, figs)
+    assert out.startswith(f"intro\n{hl.README_START}\n| suite |") and out.endswith(f"{hl.README_END}\nrest\n")
+    assert "old table" not in out and hl.headline_table(figs) in out and hl.agents_table(figs) in out
+    with pytest.raises(HarnessError, match="expected the markers"):
+        hl.readme_with_tables("no markers", figs)
+
+
 def test_strip_record_keeps_what_the_figures_need():
     r = {"suite": "s", "agent": "a", "encoder": "e", "episode_id": "x", "seed": 0, "status": "ok", "run_id": "r",
          "metrics": {"success": True, "spl": 0.5, "reached_2": True}, "extras": {"twin_of": "b", "path_xy": [[0, 0]]},
