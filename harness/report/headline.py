@@ -116,7 +116,7 @@ def headline_table(measured: dict) -> str:
     agent, its twin and their paired difference."""
     rows = ["| suite | perception | map agent | matched twin | map - twin [95% CI] | McNemar p | n |",
             "|---|---|---|---|---|---|---|"]
-    for suite, by_enc in measured["figures"].items():
+    for suite, by_enc in _in_order(measured["figures"]):
         for enc, fig in by_enc.items():
             for pair, d in fig["twins"].items():
                 base, twin = pair.split(" - ")
@@ -127,6 +127,11 @@ def headline_table(measured: dict) -> str:
     return "\n".join(rows)
 
 
+def _in_order(figures: dict) -> list[tuple[str, dict]]:
+    """(suite, figures by encoder) in :data:`SEALED_SUITES` order, whatever order a file keeps."""
+    return [(suite, figures[suite]) for suite in SEALED_SUITES if suite in figures]
+
+
 def _cell(s: dict) -> str:
     return f"{s['successes']}/{s['n']} = {s['rate']:.2f} [{s['ci'][0]:.2f}, {s['ci'][1]:.2f}]"
 
@@ -135,7 +140,7 @@ def agents_table(measured: dict) -> str:
     """Every agent's success per suite and encoder (map agents, twins, weak and random references
     and the privileged oracles, marked), Markdown."""
     rows = ["| suite | agent | perception | success [95% CI] |", "|---|---|---|---|"]
-    for suite, by_enc in measured["figures"].items():
+    for suite, by_enc in _in_order(measured["figures"]):
         for enc, fig in by_enc.items():
             for agent, entry in fig["agents"].items():
                 label = "ground truth (privileged)" if agent.startswith("oracle-") else "none" if agent.startswith("random-") else enc
@@ -148,7 +153,7 @@ def agents_table(measured: dict) -> str:
 def positions_table(measured: dict) -> str:
     """Multi-goal success per position in the chain (the first k goals reached in a row), Markdown."""
     rows = ["| suite | agent | perception | 1 goal | 2 in a row | 3 in a row | 4 in a row |", "|---|---|---|---|---|---|---|"]
-    for suite, by_enc in measured["figures"].items():
+    for suite, by_enc in _in_order(measured["figures"]):
         for enc, fig in by_enc.items():
             for agent, entry in fig["agents"].items():
                 if "positions" not in entry or agent.startswith(("oracle-", "random-")):
