@@ -9,7 +9,7 @@ from pathlib import Path
 
 from conceptfusion.errors import MissingFileError
 
-__all__ = ["atomic_write_bytes", "atomic_write_text", "read_text_file"]
+__all__ = ["atomic_write_bytes", "atomic_write_text", "read_text_file", "read_json_document"]
 
 
 def atomic_write_bytes(path: str | os.PathLike, data: bytes) -> Path:
@@ -67,3 +67,26 @@ def read_text_file(path: str | os.PathLike, what: str, error: type[Exception]) -
         line = data[: exc.start].count(b"\n") + 1
         raise error(f"{p}:line {line}: not {article} {what}: not UTF-8 text "
                     f"(byte 0x{data[exc.start]:02x} at offset {exc.start})") from None
+
+
+def read_json_document(path: str | os.PathLike, *, fmt: str, version: int, what: str, missing: str,
+                       error: type[Exception]) -> dict:
+    """The JSON object in the file at ``path``, whose ``format`` must be ``fmt`` and ``version``
+    ``version``; ``what`` names the document in messages ("split file"), ``missing`` is the message
+    for a file that is not there.
+
+    Raises:
+        error: no such file (``missing``), not JSON, or another format or version (naming the file).
+    """
+    import json
+
+    p = Path(path)
+    try:
+        data = json.loads(p.read_text())
+    except FileNotFoundError:
+        raise error(f"{p}: {missing}") from None
+    except (UnicodeDecodeError, json.JSONDecodeError) as exc:
+        raise error(f"{p}: not a JSON {what} ({exc})") from None
+    if not isinstance(data, dict) or data.get("format") != fmt or data.get("version") != version:
+        raise error(f"{p}: expected format {fmt!r} version {version}")
+    return data

@@ -25,6 +25,7 @@ from pathlib import Path
 from typing import Iterable, Mapping
 
 from conceptfusion.errors import SimError
+from conceptfusion.io_utils import read_json_document
 from sim_envs.scenes.episodes import SCENES_ROOT, Episode
 from sim_envs.scenes.splits import splits
 
@@ -118,16 +119,8 @@ def refuse_sealed(what, who: str) -> None:
 
 
 def _manifest(folder: Path) -> dict:
-    path = folder / MANIFEST_NAME
-    try:
-        data = json.loads(path.read_text())
-    except FileNotFoundError:
-        raise SealedSetError(f"{path}: the sealed set has no manifest; regenerate it with python -m scenes.make_sealed_v2") from None
-    except (UnicodeDecodeError, json.JSONDecodeError) as exc:
-        raise SealedSetError(f"{path}: not a JSON manifest ({exc})") from None
-    if not isinstance(data, dict) or data.get("format") != "cf-sealed-manifest" or data.get("version") != 1:
-        raise SealedSetError(f"{path}: expected format 'cf-sealed-manifest' version 1")
-    return data
+    return read_json_document(folder / MANIFEST_NAME, fmt="cf-sealed-manifest", version=1, what="manifest", error=SealedSetError,
+                              missing="the sealed set has no manifest; regenerate it with python -m scenes.make_sealed_v2")
 
 
 def _compare(where: str, want: Mapping, obj) -> None:

@@ -36,7 +36,7 @@ from pathlib import Path
 from typing import Mapping
 
 from conceptfusion.errors import SimError
-from conceptfusion.io_utils import atomic_write_text
+from conceptfusion.io_utils import atomic_write_text, read_json_document
 from sim_envs.assets.library import catalogue as library_catalogue
 from sim_envs.assets.library import instance_of_asset, is_library_asset
 from sim_envs.scenes.episodes import SCENES_ROOT
@@ -203,14 +203,7 @@ def load_splits(path: str | Path = SPLITS_FILE) -> Splits:
     shipped v1 scene (``scenes/<kind>/<id>.json``) with a :data:`RESERVED_ROLES` role.
     """
     path = Path(path)
-    try:
-        data = json.loads(path.read_text())
-    except FileNotFoundError:
-        raise SplitError(f"{path}: no such split file") from None
-    except (UnicodeDecodeError, json.JSONDecodeError) as exc:
-        raise SplitError(f"{path}: not a JSON split file ({exc})") from None
-    if not isinstance(data, dict) or data.get("format") != "cf-splits" or data.get("version") != 1:
-        raise SplitError(f"{path}: expected format 'cf-splits' version 1")
+    data = read_json_document(path, fmt="cf-splits", version=1, what="split file", missing="no such split file", error=SplitError)
     cats, insts, seeds = data.get("categories"), data.get("instances"), data.get("seeds")
     for field, value in (("categories", cats), ("instances", insts), ("seeds", seeds)):
         if not isinstance(value, dict) or not value:
