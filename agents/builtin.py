@@ -72,29 +72,28 @@ PUSHER_TWIN_VIEWS = 64
 it holds exactly the step's scan and fixed frame)."""
 
 
-def _map_pusher(encoder: str = "embedded", proposer: str = "rgbd", scan: bool = True, assume_present: bool = True,
-                name_only_fallback: bool = True, identify: bool = True, track_pushed: float = 0.0):
+def _pusher(mapper: ConceptMapper, use_scan: bool, **settings):
     from agents.pusher import MapPusher, PusherConfig
 
-    return MapPusher(make_mapper(encoder, proposer), PusherConfig(assume_present=assume_present, name_only_fallback=name_only_fallback,
-                                                                  identify=identify, track_pushed=track_pushed), use_scan=scan)
+    return MapPusher(mapper, PusherConfig(**settings), use_scan=use_scan)
+
+
+def _map_pusher(encoder: str = "embedded", proposer: str = "rgbd", scan: bool = True, assume_present: bool = True,
+                name_only_fallback: bool = True, identify: bool = True, track_pushed: float = 0.0):
+    return _pusher(make_mapper(encoder, proposer), scan, assume_present=assume_present, name_only_fallback=name_only_fallback,
+                   identify=identify, track_pushed=track_pushed)
 
 
 def _twin_pusher(encoder: str = "embedded", proposer: str = "rgbd", assume_present: bool = True, name_only_fallback: bool = True,
                  identify: bool = True, track_pushed: float = 0.0):
-    from agents.pusher import MapPusher, PusherConfig
-
-    return MapPusher(make_mapper(encoder, proposer, semantic_views=PUSHER_TWIN_VIEWS),
-                     PusherConfig(assume_present=assume_present, name_only_fallback=name_only_fallback, identify=identify,
-                                  track_pushed=track_pushed), use_scan=True)
+    return _pusher(make_mapper(encoder, proposer, semantic_views=PUSHER_TWIN_VIEWS), True, assume_present=assume_present,
+                   name_only_fallback=name_only_fallback, identify=identify, track_pushed=track_pushed)
 
 
 def _frame_pusher(encoder: str = "embedded", proposer: str = "rgbd", assume_present: bool = True, name_only_fallback: bool = True,
                   identify: bool = True):
-    from agents.pusher import MapPusher, PusherConfig
-
-    return MapPusher(make_mapper(encoder, proposer, persistent=False),
-                     PusherConfig(assume_present=assume_present, name_only_fallback=name_only_fallback, identify=identify), use_scan=False)
+    return _pusher(make_mapper(encoder, proposer, persistent=False), False, assume_present=assume_present,
+                   name_only_fallback=name_only_fallback, identify=identify)
 
 
 def _navigator(encoder: str, proposer: str, seed: int, semantic_views: int, **settings):

@@ -49,8 +49,7 @@ from conceptfusion.errors import HarnessError
 from harness.runner.results import latest_records, record_key
 from harness.runner.run import RunConfig, episode_jobs, run_missing_jobs
 from harness.runner.suites import SCENES_ROOT, Suite, get_suite, suite_over
-from sim_envs.scenes.episodes import load_episodes
-from sim_envs.scenes.sealed import refuse_sealed
+from sim_envs.scenes.sealed import refuse_sealed_episodes
 
 __all__ = ["DEVELOPMENT_EPISODES", "SET_SUFFIX", "development_suite", "develop", "parse_env_options", "main"]
 
@@ -87,8 +86,7 @@ def development_suite(name: str, env_kwargs: dict | None = None, episodes: str =
     if episodes not in DEVELOPMENT_EPISODES[name]:
         raise HarnessError(f"--episodes: expected one of {', '.join(DEVELOPMENT_EPISODES[name])} for {name}, got {episodes!r}")
     path = SCENES_ROOT / DEVELOPMENT_EPISODES[name][episodes]
-    refuse_sealed(path, "python -m harness.runner.develop")
-    refuse_sealed(load_episodes(path).episodes, "python -m harness.runner.develop")
+    refuse_sealed_episodes(path, "python -m harness.runner.develop")
     suite = suite_over(get_suite(name), f"{name}-{SET_SUFFIX[episodes]}", path)
     if env_kwargs:
         accepted = _env_keywords(suite.task)

@@ -91,7 +91,7 @@ from harness.runner.results import latest_records, load_results
 from harness.runner.run import RunConfig, episode_jobs, run_missing_jobs
 from harness.runner.suites import FLOORS_FILE, SUITES, Suite, suite_encoder, suite_episodes, suite_over
 from sim_envs.scenes.episodes import SCENES_ROOT, load_episodes
-from sim_envs.scenes.sealed import refuse_sealed
+from sim_envs.scenes.sealed import refuse_sealed_episodes
 
 __all__ = [
     "CONFIDENCE", "DROP", "POWER", "MAX_EPISODES", "CEILING_AGENTS", "FLOORS_FORMAT", "FLOORS_VERSION", "RECORDS_DIR",
@@ -308,8 +308,7 @@ def calibration_suite(suite: Suite) -> Suite:
     """``suite`` over its calibration episodes (all of them), named ``<suite>-calibration``."""
     if suite.calibration_file is None:
         raise HarnessError(f"suite {suite.name!r} has no calibration episodes (not a regression suite)")
-    refuse_sealed(suite.calibration_file, "python -m harness.runner.floors")
-    refuse_sealed(load_episodes(suite.calibration_file).episodes, "python -m harness.runner.floors")
+    refuse_sealed_episodes(suite.calibration_file, "python -m harness.runner.floors")
     return suite_over(suite, f"{suite.name}-calibration", suite.calibration_file)
 
 

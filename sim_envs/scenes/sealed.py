@@ -26,11 +26,11 @@ from typing import Iterable, Mapping
 
 from conceptfusion.errors import SimError
 from conceptfusion.io_utils import read_json_document
-from sim_envs.scenes.episodes import SCENES_ROOT, Episode
+from sim_envs.scenes.episodes import SCENES_ROOT, Episode, load_episodes
 from sim_envs.scenes.splits import splits
 
 __all__ = ["SEALED_FOLDER_NAME", "SEALED_FOLDER", "MANIFEST_NAME", "SEALED_SEED_ROLE", "SealedSetError", "manifest_text", "is_sealed_file",
-           "is_sealed_seed", "refuse_sealed", "verify_sealed"]
+           "is_sealed_seed", "refuse_sealed", "refuse_sealed_episodes", "verify_sealed"]
 
 SEALED_FOLDER_NAME = "sealed-v2"
 SEALED_FOLDER = SCENES_ROOT / SEALED_FOLDER_NAME
@@ -116,6 +116,17 @@ def refuse_sealed(what, who: str) -> None:
             raise SealedSetError(f"{who}: refusing to read the sealed test set: {reason} is sealed "
                                  f"({SEALED_FOLDER_NAME}, seeds {list(splits().seeds[SEALED_SEED_ROLE])}); development "
                                  "chooses on the calibration and validation sets only")
+
+
+def refuse_sealed_episodes(path, who: str) -> None:
+    """:func:`refuse_sealed` for an episode file: the file itself and every episode in it (a copy
+    of sealed episodes elsewhere still lies on sealed seeds).
+
+    Raises:
+        SealedSetError: naming ``who`` and the first sealed item.
+    """
+    refuse_sealed(path, who)
+    refuse_sealed(load_episodes(path).episodes, who)
 
 
 def _manifest(folder: Path) -> dict:
