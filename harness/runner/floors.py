@@ -1,14 +1,16 @@
 """Regression floors with statistical power, derived from recorded calibration runs.
 
 A regression suite (:mod:`harness.runner.suites`: ``regression-rearrange``,
-``regression-rearrange-embedded``, ``regression-search``) pins the first episodes of a shipped
-episode file and holds every built-in agent to a *floor* on its success rate (the random agents
-to a *ceiling*: a broken success function shows as a random agent succeeding). No floor is set by
+``regression-rearrange-embedded``, ``regression-search``, and the headline gate
+``regression-rearrange-v2``, ``regression-search-v2``) pins the first episodes of an episode
+file and holds every agent it runs to a *floor* on its success rate (the random agents to a
+*ceiling*: a broken success function shows as a random agent succeeding). No floor is set by
 hand: this module derives each one from a recorded **calibration run**, the same agents with the
 same settings (environment size, scan frames, pinned perception, seed) over *other* episodes drawn
-from the same generators (the suite's ``calibration_file``, ``scenes/calibration/``, made by
-``python -m scenes.make_calibration``; not one of them is a regression episode, so a floor is
-never fitted to the episodes it checks).
+from the same generators (the suite's ``calibration_file``: ``scenes/calibration/``, made by
+``python -m scenes.make_calibration``, for the v1 suites; ``scenes/gate-v2/``, made by ``python -m
+scenes.make_gate_v2``, for the headline gate; not one of them is a regression episode, so a floor
+is never fitted to the episodes it checks).
 
 **Procedure** (:func:`derive_bound`), for an agent that succeeded on ``k`` of ``m`` calibration
 episodes, calibrated rate ``p = k / m``, confidence ``1 - a`` (:data:`CONFIDENCE`, a = 0.05):
@@ -39,12 +41,11 @@ episodes, calibrated rate ``p = k / m``, confidence ``1 - a`` (:data:`CONFIDENCE
   it over what the calibration leaves uncertain about the rate (Jeffreys posterior
   Beta(k + 1/2, m - k + 1/2), i.e. the beta-binomial predictive of the regression count), so it
   is the chance that a calibration plus a regression run of an unchanged agent disagree; it is
-  larger than ``a`` because ``p`` is itself an estimate from ``m`` episodes. With ten bounds in
+  larger than ``a`` because ``p`` is itself an estimate from ``m`` episodes. With many bounds in
   the gate, the chance that *some* bound fails for unchanged agents is far larger than any one
-  bound's (``false_alarm_any_expected`` in the floors file, about 45%): the price of catching a
-  15-point drop with 80% probability per agent on at most 100 episodes. Holding the family to 5%
-  instead (Sidak, beta-binomial) would leave most agents' detection probability between 0.35 and 0.7
-  on the same budget.
+  bound's (``false_alarm_any_expected`` in the floors file): with per-bound 95% counts it was
+  about 45% for the ten v1 bounds, the price of catching a 15-point drop with 80% probability per
+  agent on at most 100 episodes; hence the family-wise counts below.
 
 All of it is exact binomial (or beta-binomial) arithmetic from :mod:`scipy.stats`, never a
 normal approximation. The regression episodes are pinned and the agents deterministic, so a run
@@ -56,8 +57,11 @@ solved 36 of its 69 pinned episodes, below its floor of 38 (calibrated on 96 of 
 therefore sets every count at the family-wise level (:data:`FAMILY_ALARM`,
 :func:`family_confidence`: the whole gate fails for unchanged agents at their calibrated rates
 with probability at most 5%), keeping the episode counts chosen for per-bound power; the
-detection probabilities recorded are those of the family-wise counts (0.37-0.64 for most agents,
-``power_met`` false).
+detection probabilities recorded are those of the family-wise counts (``power_met`` false for
+most agents: 0.36-0.57 on the v1 suites and the v2 pushers, about 0.1 for the v2 navigators,
+whose 34-36 pinned searches at a calibrated rate near one half catch a fall of 25 points half
+the time and one of 30 points three times in four: they guard against a broken pipeline, not a
+small slip).
 
 **Files.** The calibration records (``harness/data/floors/<suite>.jsonl``, results records as
 the runner writes them, less the per-step ``extras.path_xy`` traces) and the floors
@@ -97,7 +101,8 @@ __all__ = [
     "CONFIDENCE", "DROP", "POWER", "MAX_EPISODES", "CEILING_AGENTS", "FLOORS_FORMAT", "FLOORS_VERSION", "RECORDS_DIR",
     "Bound", "floor_count", "ceiling_count", "detection_probability", "false_alarm_probability",
     "expected_false_alarm", "clopper_pearson", "derive_bound", "regression_suites", "calibration_suite",
-    "records_file", "load_calibration", "derive_suite", "derive_floors", "calibrate", "check", "replay_sample", "main",
+    "records_file", "load_calibration", "derive_suite", "derive_floors", "calibrate", "check", "replay_sample",
+    "markdown_table", "main",
 ]
 
 CONFIDENCE = 0.95
@@ -113,9 +118,13 @@ unchanged agents at their calibrated rates: each bound's count is set at the Sid
 power at :data:`CONFIDENCE`, so the recorded detection probabilities are those of the lower
 family-wise counts)."""
 """Target probability of catching a drop of :data:`DROP` (a rise, for a ceiling)."""
-MAX_EPISODES = {"regression-rearrange": 100, "regression-rearrange-embedded": 100, "regression-search": 50}
-"""Most pinned episodes an agent may run per regression suite (CI budget, and for search all the
-shipped episodes): the power computation chooses within it."""
+MAX_EPISODES = {"regression-rearrange": 100, "regression-rearrange-embedded": 100, "regression-search": 50,
+                "regression-rearrange-v2": 80, "regression-search-v2": 36}
+"""Most pinned episodes an agent may run per regression suite (CI budget, and for v1 search and
+v2 rearrangement all the pinned episodes): the power computation chooses within it. A v2 search
+episode takes about 11 s with embedded perception, so ``regression-search-v2`` holds each
+navigator to at most 36 (half the gate's 72 pinned searches, about 7 minutes of the gate on two
+cores)."""
 CEILING_AGENTS = frozenset({"random-pusher", "random-walker"})
 """Agents held to a ceiling instead of a floor."""
 FLOORS_FORMAT = "cf-floors"
@@ -535,6 +544,21 @@ def _table(data: dict) -> str:
                 f"{b['false_alarm']:>5.3f} {b['false_alarm_expected']:>6.3f}"
                 + ("" if b["power_met"] else "  (power target not met)") + ("" if b["can_fail"] else "  (cannot fail)"))
     return "\n".join(lines)
+
+
+def markdown_table(data: dict) -> str:
+    """The floors of ``data`` (a floors file's content) as the README's Markdown table, one row
+    per bound (the test suite checks the README holds exactly this table for the committed file)."""
+    lines = ["| suite | agent | bound | calibration | pinned episodes | detects a 15-point drop (rise) | false alarm (at p / expected) |",
+             "|---|---|---|---|---|---|---|"]
+    for suite, entry in data["suites"].items():
+        for agent, b in entry["agents"].items():
+            cal = b["calibration"]
+            detect = f"{b['detection']:.2f}" + ("" if b["can_fail"] else " (cannot fail)")
+            lines.append(f"| `{suite}` | `{agent}` | {b['bound']} {b['value']:.3f} ({b['count']} of {b['episodes']}) | "
+                         f"{cal['successes']}/{cal['episodes']} ({cal['rate']:.2f}) | {b['episodes']} | {detect} | "
+                         f"{b['false_alarm']:.3f} / {b['false_alarm_expected']:.3f} |")
+    return "\n".join(lines) + "\n"
 
 
 def main(argv: list[str] | None = None) -> int:

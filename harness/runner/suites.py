@@ -38,7 +38,12 @@ Map suites score ConceptFusion maps against simulator ground truth (:mod:`harnes
 The regression suites (``regression-rearrange`` and ``regression-search`` with the privileged
 oracle perception pinned, ``regression-rearrange-embedded`` with the shipped embedded tower) pin
 the first episodes of the shipped files and hold every built-in agent to a success floor (the
-random agents to a ceiling), run in CI. Floors, ceilings and each agent's episode count are not
+random agents to a ceiling), run in CI. ``regression-rearrange-v2`` and ``regression-search-v2``
+gate the headline pipeline the same way: the v2 world, ``embedded-v2`` pinned, the agents' shipped
+settings (``identify``, ``presume_after``, the search proposals) and the v2 camera sizes, on the
+gate's own episodes (``scenes/gate-v2/``, :data:`GATE_FOLDER`); every agent whose success can fall
+is bounded, the map agents' twins included (``frame-searcher``, which solves next to nothing with
+embedded perception, cannot get a bound that fails and is left out). Floors, ceilings and each agent's episode count are not
 set here: they are derived by :mod:`harness.runner.floors` from recorded calibration runs over
 other episodes of the same generators (``calibration_file``) and read from :data:`FLOORS_FILE`.
 
@@ -63,7 +68,7 @@ from sim_envs.scenes.sealed import SEALED_FOLDER, is_sealed_file, verify_sealed
 from sim_envs.scenes.splits import splits
 
 __all__ = ["Suite", "SUITES", "get_suite", "DEFAULT_SUITES", "REARRANGE_V2_ENV", "REARRANGE_V2_LIMIT", "SEARCH_V2_LIMIT", "CHAIN_V2_LIMIT",
-           "FRAME_SEARCHER_LIMIT", "suite_encoder", "suite_episodes", "FLOORS_FILE",
+           "FRAME_SEARCHER_LIMIT", "GATE_FOLDER", "HEADLINE_GATE", "suite_encoder", "suite_episodes", "FLOORS_FILE",
            "calibrated_bounds", "suite_over"]
 
 FLOORS_FILE = Path(__file__).resolve().parents[1] / "data" / "floors" / "floors.json"
@@ -161,6 +166,10 @@ CHAIN_V2_LIMIT = 3
 """Chains ``chain-v2`` runs unless ``--limit`` says otherwise: the first 3 of its 30 (one each of
 2, 3 and 4 goals); ``--limit 30`` runs them all (the headline figures)."""
 
+GATE_FOLDER = SCENES_ROOT / "gate-v2"
+"""Episodes of the v2 regression suites, pinned and calibration (``python -m scenes.make_gate_v2``):
+calibration seeds, TRAIN and VAL instances only, none in any other file."""
+
 FRAME_SEARCHER_LIMIT = 8
 """Episodes the weak reactive ``frame-searcher`` runs in ``search-v2`` unless ``--limit`` says
 otherwise: the slowest agent (it segments every frame) and a reference, not the headline
@@ -246,9 +255,30 @@ SUITES: dict[str, Suite] = {
             env_kwargs={"width": 160, "height": 120}, encoder="oracle",
             calibration_file=SCENES_ROOT / "calibration" / "search-episodes-v1.jsonl", **calibrated_bounds("regression-search"),
         ),
+        Suite(
+            "regression-rearrange-v2", "episodes",
+            "the headline tabletop pipeline gated: pinned v2 tabletop episodes (gate set), embedded-v2 perception and the "
+            "shipped agent settings, calibrated success floors (CI, -m headline_gate)",
+            task="tabletop_rearrange", episodes_file=GATE_FOLDER / "rearrange-episodes-v2.jsonl",
+            agents=("map-pusher", "twin-pusher", "frame-pusher", "random-pusher", "oracle-pusher"),
+            env_kwargs=dict(REARRANGE_V2_ENV), encoder="embedded-v2",
+            calibration_file=GATE_FOLDER / "rearrange-calibration-v2.jsonl", **calibrated_bounds("regression-rearrange-v2"),
+        ),
+        Suite(
+            "regression-search-v2", "episodes",
+            "the headline search pipeline gated: pinned v2 apartment searches (gate set), embedded-v2 perception and the "
+            "shipped agent settings, calibrated success floors (CI, -m headline_gate)",
+            task="object_search", episodes_file=GATE_FOLDER / "search-episodes-v2.jsonl",
+            agents=("map-navigator", "twin-navigator", "random-walker", "oracle-searcher"),
+            env_kwargs=dict(SEARCH_V2_ENV), encoder="embedded-v2",
+            calibration_file=GATE_FOLDER / "search-calibration-v2.jsonl", **calibrated_bounds("regression-search-v2"),
+        ),
     )
 }
 """Every suite by name."""
+
+HEADLINE_GATE = ("regression-rearrange-v2", "regression-search-v2")
+"""The regression suites that gate the headline pipeline (CI: ``python -m pytest -q -m headline_gate``)."""
 
 DEFAULT_SUITES = ("query-open", "query-v2", "ablation-v2", "spatial-v2", "rearrange-v2", "search-v2", "chain-v2")
 """What ``cfharness run`` runs with no ``--suite``: the v2 world (object library, evaluation seeds)

@@ -3,12 +3,14 @@
 import pytest
 
 from harness.runner.floors import regression_suites, replay_sample
+from harness.runner.suites import HEADLINE_GATE
 
 
 @pytest.mark.gate
-@pytest.mark.parametrize("suite", regression_suites(), ids=lambda s: s.name)
+@pytest.mark.parametrize("suite", [s for s in regression_suites() if s.name not in HEADLINE_GATE], ids=lambda s: s.name)
 def test_a_sample_of_calibration_episodes_comes_back_exactly(suite):
     # every agent's first calibration episode and one more spread by hash: status and every metric equal
+    # (the headline suites' in test_headline_gate.py, with the rest of their gate)
     assert replay_sample(suite, per_agent=2) == []
 
 

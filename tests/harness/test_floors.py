@@ -16,7 +16,7 @@ from agents.registry import AGENTS
 from harness.commands import _check_floors
 from harness.runner import floors
 from harness.runner.results import make_record
-from harness.runner.suites import FLOORS_FILE, SUITES, get_suite, suite_episodes
+from harness.runner.suites import FLOORS_FILE, HEADLINE_GATE, SUITES, get_suite, suite_episodes
 from sim_envs.scenes.episodes import load_episodes
 
 REPO = Path(__file__).resolve().parents[2]
@@ -111,14 +111,30 @@ def test_every_builtin_agent_has_a_bound_that_can_fail_where_the_budget_allows_o
             cannot.add((suite.name, agent))
     builtin = {n for n, spec in AGENTS.items()  # not the agents other tests register from plugins
                if (spec.factory if isinstance(spec.factory, str) else spec.factory.__module__).startswith("agents.")}
-    # the matched twins have no calibrated bound yet: they are not in the v1 regression suites
+    # the matched twins are bounded in the headline gate (the v2 suites), beside the agents they twin
     twins = {n for n in builtin if AGENTS[n].twin_of}
     assert twins == {"twin-navigator", "twin-pusher"}
-    assert len(builtin) == 10 and set(bounded) == builtin - twins
+    assert len(builtin) == 10 and set(bounded) == builtin
     assert {a for a, kinds in bounded.items() if "ceiling" in kinds} == set(floors.CEILING_AGENTS)
     assert cannot == {("regression-search", "frame-searcher")}  # the one the floors module documents
     embedded = get_suite("regression-rearrange-embedded")
     assert embedded.encoder == "embedded" and set(embedded.floors) == {"map-pusher", "frame-pusher"}
+
+
+def test_the_headline_gate_is_the_v2_regression_suites_with_the_shipped_pipeline():
+    assert {s.name for s in floors.regression_suites()} >= set(HEADLINE_GATE)
+    headline = {"regression-rearrange-v2": "rearrange-v2", "regression-search-v2": "search-v2"}
+    assert set(headline) == set(HEADLINE_GATE)
+    for name in HEADLINE_GATE:
+        suite, shown = get_suite(name), get_suite(headline[name])
+        # the headline's perception and cameras, its agents (the weak frame-searcher aside: it cannot get a bound)
+        assert suite.encoder == shown.default_encoder == "embedded-v2" and suite.env_kwargs == shown.env_kwargs
+        assert set(shown.agents) - set(suite.agents) <= {"frame-searcher"}
+        # every agent is bounded, the map agents' twins included
+        assert set(suite.agent_limits) == set(suite.agents)
+        twins = {a for a in suite.agents if AGENTS[a].twin_of}
+        assert twins and all(AGENTS[t].twin_of in suite.agents for t in twins)
+        assert all(suite.floors.get(a, 0) * suite.agent_limits[a] >= 1 for a in suite.floors), name  # every floor can fail
 
 
 def test_calibration_episodes_are_not_regression_episodes():
@@ -293,3 +309,9 @@ def test_floor_as_needs_an_agent_of_the_run_and_a_builtin(tmp_path):
     done = _run_cli(tmp_path, "--suite", "regression-rearrange", "--agent", "cf_sabotage:WrongWayPusher",
                     "--floor-as", "cf_sabotage:WrongWayPusher=map-pushr")
     assert done.returncode == 2 and "map-pusher" in done.stderr
+
+
+def test_the_readme_shows_the_floors_recomputed_from_the_records():
+    # recomputed here from the committed calibration records, not read back from the floors file
+    table = floors.markdown_table(floors.derive_floors())
+    assert table in (REPO / "README.md").read_text(), "README's floors table is stale: print floors.markdown_table(...)"

@@ -10,7 +10,7 @@ from harness.maps.suites import MAP_SUITES, scene_ids
 from harness.runner.floors import calibration_suite, regression_suites
 from harness.runner.map_jobs import map_suite_jobs
 from harness.runner.run import RunConfig, episode_jobs
-from harness.runner.suites import SUITES, get_suite, suite_episodes
+from harness.runner.suites import HEADLINE_GATE, SUITES, get_suite, suite_episodes
 from sim_envs.scenes.episodes import SCENES_ROOT, load_episodes
 from sim_envs.scenes.splits import splits
 from tower_training.score_floor import FloorConfig
@@ -47,6 +47,9 @@ def test_no_evaluation_suite_uses_a_reserved_or_calibration_scene(name):
     # v2 scenes come from evaluation seeds only (the agent suites from the sealed test set's);
     # v1 seeds (0-9999) lie outside every seed range
     roles = {splits().seed_role(seed) for _, seed in scenes if seed is not None}
+    if name in HEADLINE_GATE:  # the gate is a development tool: tower_val seeds, no test instance (test_gate_data)
+        assert roles == {"tower_val"}, f"{name}: scene seeds of roles {roles}"
+        return
     assert roles <= {None, "evaluation", "sealed"}, f"{name}: scene seeds of roles {roles}"
     if name in ("search-v2", "rearrange-v2"):
         assert roles == {"sealed"}, f"{name}: scene seeds of roles {roles}"
