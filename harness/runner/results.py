@@ -39,7 +39,7 @@ __all__ = [
     "RESULTS_FORMAT", "RESULTS_VERSION", "RUN_CONFIG_FORMAT", "RUN_CONFIG_VERSION", "RESULTS_FILE", "RUN_CONFIG_FILE",
     "STATUSES", "ResultsFormatError", "EpisodeKey", "agent_label", "record_key", "make_record", "append_record",
     "load_results", "repair_results", "completed_keys", "latest_records", "write_run_config", "read_run_config",
-    "check_run_config", "harness_version", "load_runs",
+    "check_run_config", "check_run_records", "harness_version", "load_runs",
 ]
 
 RESULTS_FORMAT = "cf-results"
@@ -302,15 +302,16 @@ def _describe(raw: bytes) -> str:
     return f"text {text[:40]!r}" + ("..." if len(text) > 40 else "")
 
 
-def _scan(data: bytes, where: str) -> tuple[list[dict], int, list[tuple[int, str]], str | None]:
+def _scan(data: bytes, where: str) -> tuple[list[dict], int, list[tuple[int, str]], str | None, list[int]]:
     """Parse the complete lines.
 
     Returns the records, the byte length of the good prefix (everything but a half-written last
-    line), the corrupt lines elsewhere as ``(line number, reason)`` and the warning about a
-    half-written last line (None: there is none). A line that is JSON but not a valid record
+    line), the corrupt lines elsewhere as ``(line number, reason)``, the warning about a
+    half-written last line (None: there is none) and each record's line number. A line that is JSON but not a valid record
     raises ``ResultsFormatError`` (file, line, field) at once.
     """
     records: list[dict] = []
+    numbers: list[int] = []
     corrupt: list[tuple[int, str]] = []
     lines = data.split(b"\n")
     complete_end = len(data) - len(lines[-1])  # bytes up to and including the last newline
@@ -326,19 +327,21 @@ def _scan(data: bytes, where: str) -> tuple[list[dict], int, list[tuple[int, str
             rec = json.loads(raw)
         except (json.JSONDecodeError, UnicodeDecodeError, RecursionError) as exc:
             if i == len(body) and not tail.strip():
-                return records, good_end, corrupt, f"{where}: line {i}: skipping a half-written last line ({exc})"
+                return records, good_end, corrupt, f"{where}: line {i}: skipping a half-written last line ({exc})", numbers
             corrupt.append((i, f"{_describe(raw)}, not a JSON record ({exc})"))
             good_end = offset
             continue
         _check_header(rec, f"{where}: line {i}")
         _check_record(rec, f"{where}: line {i}")
         records.append(rec)
+        numbers.append(i)
         good_end = offset
     if tail.strip():
-        return records, good_end, corrupt, f"{where}: line {len(body) + 1}: skipping a half-written last line (no newline)"
+        return (records, good_end, corrupt, f"{where}: line {len(body) + 1}: skipping a half-written last line (no newline)",
+                numbers)
     if good_end == complete_end:
         good_end = len(data)  # keep trailing whitespace after the last newline
-    return records, good_end, corrupt, None
+    return records, good_end, corrupt, None, numbers
 
 
 def _read(p: Path) -> bytes:
@@ -362,7 +365,7 @@ def load_results(path: str | os.PathLike, *, strict: bool = False) -> list[dict]
     p = Path(path)
     if not p.exists():
         return []
-    records, _, corrupt, half_written = _scan(_read(p), str(p))
+    records, _, corrupt, half_written, _ = _scan(_read(p), str(p))
     if corrupt and (strict or not records):
         no, why = corrupt[0]
         lead = f"{p}: line {no}: corrupt record: {why}"
@@ -389,7 +392,7 @@ def repair_results(path: str | os.PathLike) -> int:
     if not p.exists():
         return 0
     data = _read(p)
-    _, good_end, corrupt, _ = _scan(data, str(p))
+    _, good_end, corrupt, _, _ = _scan(data, str(p))
     if corrupt:
         listed = "; ".join(f"line {no}: {why}" for no, why in corrupt[:3]) + ("; ..." if len(corrupt) > 3 else "")
         raise ResultsFormatError(f"{p}: holds {len(corrupt)} corrupt line(s) that a killed run does not leave "
@@ -399,6 +402,51 @@ def repair_results(path: str | os.PathLike) -> int:
         return 0
     atomic_write_bytes(p, data[:good_end])
     return len(data) - good_end
+
+
+def _outcome(record: dict) -> tuple:
+    """What two records of one episode key must agree on to be the same result: status and metrics
+    (not timings, finish time or the error's traceback text)."""
+    return record.get("status"), json.dumps(record.get("metrics") or {}, sort_keys=True)
+
+
+def _key_words(key: EpisodeKey) -> str:
+    return f"{key.suite} {key.agent} [{key.encoder}] episode {key.episode_id} seed {key.seed}"
+
+
+def check_run_records(path: str | os.PathLike, run_id: str) -> None:
+    """Refuse a results file that a resumed run of ``run_id`` must not append to; a missing file passes.
+
+    Every record must carry ``run_id`` (a record of another run was appended by something else:
+    another run writing to the same folder, files concatenated), and two records of one
+    :class:`EpisodeKey` (suite, agent and its options, encoder, episode, seed) must have the same
+    outcome (status and metrics). Identical duplicates pass: they count once
+    (:func:`latest_records`) and are left in the file.
+
+    Raises:
+        ResultsFormatError: naming the file, the line(s) and what differs; and as :func:`load_results`.
+    """
+    p = Path(path)
+    if not p.exists():
+        return
+    records, _, _, _, numbers = _scan(_read(p), str(p))
+    first: dict[EpisodeKey, tuple[int, dict]] = {}
+    for no, rec in zip(numbers, records):
+        if rec["run_id"] != run_id:
+            raise ResultsFormatError(
+                f"{p}: line {no}: expected records of this folder's run {run_id!r} (its {RUN_CONFIG_FILE}), got a record of "
+                f"run {rec['run_id']!r}; records of another run do not belong here: move them to their own folder "
+                "and resume again")
+        key = record_key(rec)
+        if key not in first:
+            first[key] = (no, rec)
+            continue
+        no0, rec0 = first[key]
+        if _outcome(rec0) != _outcome(rec):
+            raise ResultsFormatError(
+                f"{p}: lines {no0} and {no}: expected one outcome per episode, got two records of {_key_words(key)} "
+                f"that differ (status {rec0['status']} vs {rec['status']}, metrics {_outcome(rec0)[1]} vs "
+                f"{_outcome(rec)[1]}); delete the wrong one and resume again")
 
 
 def load_runs(run_dirs) -> list[dict]:
