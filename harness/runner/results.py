@@ -19,7 +19,9 @@ reading for a report, but :func:`repair_results` refuses it (naming the lines) s
 run never appends after junk.
 
 The run's settings live next to the results in ``run.json`` (:func:`write_run_config`), so a
-resumed run can check that it continues the same run.
+resumed run can check that it continues the same run; every record carries its ``run_id``, and
+:func:`check_run_records` refuses, before a resumed run appends, a record of another run or two
+records of one episode with different outcomes (naming file and lines).
 """
 
 from __future__ import annotations

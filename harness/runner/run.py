@@ -6,8 +6,10 @@ them go to one backend through :func:`harness.runner.backends.run_jobs`.
 
 A run lives in a folder: ``run.json`` (its settings) and ``results.jsonl`` (one record per
 episode or map case, appended as each finishes, so an interrupted run loses at most the jobs in
-flight). ``resume=True`` repairs a half-written last line, checks the settings match, and runs
-only the jobs without a record.
+flight). One run at a time holds the folder (:mod:`harness.runner.folder`, an OS lock released
+when the process ends): another process's run on it is refused. ``resume=True`` repairs a
+half-written last line, checks the settings match and that every record is this run's (one
+outcome per episode), and runs only the jobs without a record.
 
 Settings are checked when a :class:`RunConfig` is made
 (:func:`~harness.runner.settings.validate_run_config`): names
