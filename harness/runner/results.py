@@ -41,7 +41,7 @@ __all__ = [
     "RESULTS_FORMAT", "RESULTS_VERSION", "RUN_CONFIG_FORMAT", "RUN_CONFIG_VERSION", "RESULTS_FILE", "RUN_CONFIG_FILE",
     "STATUSES", "ResultsFormatError", "EpisodeKey", "agent_label", "record_key", "make_record", "append_record",
     "load_results", "repair_results", "completed_keys", "latest_records", "write_run_config", "read_run_config",
-    "check_run_config", "check_run_records", "harness_version", "load_runs",
+    "check_run_config", "check_run_records", "warn_record_problems", "harness_version", "load_runs",
 ]
 
 RESULTS_FORMAT = "cf-results"
@@ -416,6 +416,26 @@ def _key_words(key: EpisodeKey) -> str:
     return f"{key.suite} {key.agent} [{key.encoder}] episode {key.episode_id} seed {key.seed}"
 
 
+def _record_problems(path: Path, run_id: str):
+    """Each problem of ``path`` for a run of ``run_id`` (see :func:`check_run_records`), in file order, as one line."""
+    records, _, _, _, numbers = _scan(_read(path), str(path))
+    first: dict[EpisodeKey, tuple[int, dict]] = {}
+    for no, rec in zip(numbers, records):
+        if rec["run_id"] != run_id:
+            yield (f"{path}: line {no}: expected records of this folder's run {run_id!r} (its {RUN_CONFIG_FILE}), got a "
+                   f"record of run {rec['run_id']!r}")
+            continue
+        key = record_key(rec)
+        if key not in first:
+            first[key] = (no, rec)
+            continue
+        no0, rec0 = first[key]
+        if _outcome(rec0) != _outcome(rec):
+            yield (f"{path}: lines {no0} and {no}: expected one outcome per episode, got two records of {_key_words(key)} "
+                   f"that differ (status {rec0['status']} vs {rec['status']}, metrics {_outcome(rec0)[1]} vs "
+                   f"{_outcome(rec)[1]})")
+
+
 def check_run_records(path: str | os.PathLike, run_id: str) -> None:
     """Refuse a results file that a resumed run of ``run_id`` must not append to; a missing file passes.
 
@@ -431,28 +451,34 @@ def check_run_records(path: str | os.PathLike, run_id: str) -> None:
     p = Path(path)
     if not p.exists():
         return
-    records, _, _, _, numbers = _scan(_read(p), str(p))
-    first: dict[EpisodeKey, tuple[int, dict]] = {}
-    for no, rec in zip(numbers, records):
-        if rec["run_id"] != run_id:
-            raise ResultsFormatError(
-                f"{p}: line {no}: expected records of this folder's run {run_id!r} (its {RUN_CONFIG_FILE}), got a record of "
-                f"run {rec['run_id']!r}; records of another run do not belong here: move them to their own folder "
-                "and resume again")
-        key = record_key(rec)
-        if key not in first:
-            first[key] = (no, rec)
-            continue
-        no0, rec0 = first[key]
-        if _outcome(rec0) != _outcome(rec):
-            raise ResultsFormatError(
-                f"{p}: lines {no0} and {no}: expected one outcome per episode, got two records of {_key_words(key)} "
-                f"that differ (status {rec0['status']} vs {rec['status']}, metrics {_outcome(rec0)[1]} vs "
-                f"{_outcome(rec)[1]}); delete the wrong one and resume again")
+    for problem in _record_problems(p, run_id):
+        fix = ("records of another run do not belong here: move them to their own folder and resume again"
+               if "expected records of" in problem else "delete the wrong one and resume again")
+        raise ResultsFormatError(f"{problem}; {fix}")
+
+
+def warn_record_problems(folder: str | os.PathLike) -> None:
+    """Warn (for ``report`` and ``compare``) about the records of a run folder that are not its
+    run's or that disagree with another record of their episode (see :func:`check_run_records`),
+    one warning each, naming file and line(s): the report counts the last record of each episode.
+    A folder without a readable ``run.json`` is not checked."""
+    folder = Path(folder)
+    try:
+        run_id = read_run_config(folder).get("run_id")
+    except (OSError, ValueError):  # no or unreadable run.json: nothing to hold the records to
+        return
+    if not isinstance(run_id, str):
+        return
+    for problem in _record_problems(folder / RESULTS_FILE, run_id):
+        warnings.warn(f"{problem}; the report counts the last record of each episode", stacklevel=3)
 
 
 def load_runs(run_dirs) -> list[dict]:
     """Records of run folders (or results files), in order, for ``report`` and ``compare``.
+
+    A run folder's record of another run than its ``run.json`` names, or one that disagrees with
+    another record of its episode (see :func:`check_run_records`), is a warning naming the file
+    and the line(s); the report counts the last record of each episode.
 
     Raises :class:`~conceptfusion.errors.MissingFileError` naming a path that does not exist
     or a folder that holds no :data:`RESULTS_FILE`, and ``ResultsFormatError`` as
@@ -470,6 +496,8 @@ def load_runs(run_dirs) -> list[dict]:
         if not results.is_file():
             raise MissingFileError(f"{p}: no {RESULTS_FILE} here; is it a run folder?")
         records.extend(load_results(results))
+        if p.is_dir():
+            warn_record_problems(p)
     if not records:
         raise ResultsFormatError(f"no records in {', '.join(str(x) for x in paths)} (empty results file?)")
     return records

@@ -174,3 +174,23 @@ def test_check_run_records_refuses_two_outcomes_of_one_episode_and_passes_identi
     for rec in (_rec("ep-0"), _rec("ep-0", seed=1, metrics={"success": False})):
         append_record(other_seed, rec)
     check_run_records(other_seed, "r1")
+
+
+def test_report_loading_warns_about_another_runs_records_and_two_outcomes(tmp_path):
+    from harness.runner.results import load_runs
+
+    write_run_config(tmp_path, {"run_id": "r1", "settings": {}})
+    path = tmp_path / "results.jsonl"
+    for rec in (_rec("ep-0"), _rec("ep-1", run_id="r2"), _rec("ep-0", status="failed", metrics={"success": False})):
+        append_record(path, rec)
+    with pytest.warns(UserWarning) as caught:
+        records = load_runs([tmp_path])
+    assert len(records) == 3
+    messages = [str(w.message) for w in caught]
+    assert messages == [
+        f"{path}: line 2: expected records of this folder's run 'r1' (its run.json), got a record of run 'r2'; "
+        "the report counts the last record of each episode",
+        f"{path}: lines 1 and 3: expected one outcome per episode, got two records of search "
+        "map-navigator[integrate_every=3] [test] episode ep-0 seed 0 that differ (status ok vs failed, metrics "
+        '{"spl": 0.5, "success": true} vs {"success": false}); the report counts the last record of each episode',
+    ]
