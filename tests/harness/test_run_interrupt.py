@@ -28,16 +28,19 @@ import numpy as np
 
 
 class SlowStop:
-    """Sleeps CF_SLOW_S seconds (default 0), then stops: a slow, cheap tabletop agent."""
+    """Stops at once in the first episode of its process; in later ones it first sleeps
+    CF_SLOW_S seconds (default 0): a slow, cheap tabletop agent."""
 
     privileged = False
     reads_scan = False
+    episodes = 0
 
     def reset(self, seed=None):
-        pass
+        SlowStop.episodes += 1
 
     def act(self, observation, info=None):
-        time.sleep(float(os.environ.get("CF_SLOW_S", "0")))
+        if SlowStop.episodes > 1:
+            time.sleep(float(os.environ.get("CF_SLOW_S", "0")))
         return np.array([0, 0, 0, 0, 1], np.float32)
 '''
 
@@ -48,7 +51,7 @@ ARGS = ["run", "--suite", "rearrange", "--agent", "cf_slow_stop:SlowStop", "--li
 def test_a_stopped_run_keeps_its_records_says_how_to_resume_and_resumes(tmp_path, monkeypatch, capsys, signum, status, name):
     (tmp_path / "cf_slow_stop.py").write_text(SLOW)
     out = tmp_path / "run"
-    env = {**os.environ, "MUJOCO_GL": "egl", "CF_SLOW_S": "30", "PYTHONPATH": os.pathsep.join([str(tmp_path), str(REPO)])}
+    env = {**os.environ, "MUJOCO_GL": "egl", "CF_SLOW_S": "120", "PYTHONPATH": os.pathsep.join([str(tmp_path), str(REPO)])}
     proc = subprocess.Popen([sys.executable, "-m", "harness.cli", *ARGS, "--out", str(out)], cwd=REPO, env=env,
                             stdout=subprocess.PIPE, stderr=subprocess.PIPE, text=True)
     results = out / "results.jsonl"
@@ -57,7 +60,7 @@ def test_a_stopped_run_keeps_its_records_says_how_to_resume_and_resumes(tmp_path
         while time.monotonic() < deadline and proc.poll() is None and not (results.exists() and results.read_text()):
             time.sleep(0.1)
         assert proc.poll() is None and results.read_text().count("\n") == 1, "the first episode did not finish"
-        proc.send_signal(signum)  # during the second episode's 30 s sleep
+        proc.send_signal(signum)  # during the second episode's sleep
         _, err = proc.communicate(timeout=120)
     finally:
         if proc.poll() is None:
