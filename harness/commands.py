@@ -121,11 +121,12 @@ def _interrupted(exc: KeyboardInterrupt, out: str, plan) -> int:
         print(f"cfharness run: stopped by {signame} before the first episode; nothing was run", file=sys.stderr)
         return status
     try:
-        kept = len(load_results(plan.results))
+        n = len(load_results(plan.results))
+        kept = f"{n} finished record{'' if n == 1 else 's'}"
     except (ValueError, OSError):
-        kept = "the"
+        kept = "the finished records"
     resume = f"cfharness run --out {shlex.quote(str(out))} --resume"
-    print(f"cfharness run: stopped by {signame}; {kept} finished records kept in {plan.results} "
+    print(f"cfharness run: stopped by {signame}; {kept} kept in {plan.results} "
           f"({len(plan.jobs)} planned); finish the run with: {resume}", file=sys.stderr)
     return status
 

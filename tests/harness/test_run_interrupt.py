@@ -69,7 +69,7 @@ def test_a_stopped_run_keeps_its_records_says_how_to_resume_and_resumes(tmp_path
     assert "Traceback" not in err, err
     last = err.strip().splitlines()[-1]
     resume = f"cfharness run --out {shlex.quote(str(out))} --resume"
-    assert last == (f"cfharness run: stopped by {name}; 1 finished records kept in {results} (3 planned); "
+    assert last == (f"cfharness run: stopped by {name}; 1 finished record kept in {results} (3 planned); "
                     f"finish the run with: {resume}"), err
     assert len(load_results(results)) == 1
 
