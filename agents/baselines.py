@@ -38,7 +38,7 @@ class RandomPusher:
 
     def reset(self, *, seed: int | None = None) -> None:
         self.rng = np.random.default_rng(self.seed if seed is None else seed)
-        self._left = int(self.rng.integers(1, self.max_pushes + 1))
+        self._left = int(self.rng.integers(1, self.max_pushes, endpoint=True))  # max_pushes up to 2**63 - 1
 
     def act(self, observation, info=None) -> np.ndarray:
         if self._left <= 0:

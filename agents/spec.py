@@ -10,6 +10,7 @@ from __future__ import annotations
 
 import dataclasses
 import importlib
+import math
 from dataclasses import dataclass, field
 from typing import Any, Callable, Protocol, runtime_checkable
 
@@ -20,6 +21,10 @@ __all__ = [
     "Agent", "AgentSpec", "Option", "AGENTS", "register_agent", "agent_names", "coerce_kwargs", "check_option", "import_factory",
     "spec_summary",
 ]
+
+
+_INT64_MIN, _INT64_MAX = -(2**63), 2**63 - 1
+"""The integers an int :class:`Option` accepts at most, whatever its check says."""
 
 
 @runtime_checkable
@@ -70,6 +75,8 @@ class Option:
 
     def convert(self, name: str, value: Any) -> Any:
         """``value`` converted to :attr:`type` and checked; ``name`` starts the error messages.
+        Whatever :attr:`check` says, a float must be finite and an int must fit in 64 bits (numpy's
+        random draws and arrays take no more).
 
         Raises:
             ValueError: a string that does not convert, or a value ``check`` refuses.
@@ -78,14 +85,18 @@ class Option:
         out = _convert(name, self.type, value)
         if self.type is float and out != out:
             raise AgentError(f"{name}: expected {self.expected or 'a number'}, got {value!r}")
-        if self.check is None:
-            return out
-        try:
-            ok = self.check(out)
-        except ValueError as exc:  # a check with its own message (nearest names)
-            raise AgentError(f"{name}: {exc}") from exc
-        if not ok:
-            raise AgentError(f"{name}: expected {self.expected or 'another value'}, got {value!r}")
+        if self.check is not None:
+            try:
+                ok = self.check(out)
+            except ValueError as exc:  # a check with its own message (nearest names)
+                raise AgentError(f"{name}: {exc}") from exc
+            if not ok:
+                raise AgentError(f"{name}: expected {self.expected or 'another value'}, got {value!r}")
+        if self.type is float and not math.isfinite(out):
+            raise AgentError(f"{name}: expected {self.expected or 'a number'}, finite, got {value!r}")
+        if self.type is int and not _INT64_MIN <= out <= _INT64_MAX:  # numpy (seeds, random draws) holds no more
+            raise AgentError(f"{name}: expected {self.expected or 'an integer'} that fits in 64 bits "
+                             f"(at most {_INT64_MAX}), got {value!r}")
         return out
 
 
@@ -202,6 +213,12 @@ def import_factory(path: str) -> Callable[..., Agent]:
         mod = importlib.import_module(module)
     except ImportError as exc:
         raise ValueError(f"agent import path {path!r}: cannot import {module!r}: {exc}") from exc
+    except SystemExit as exc:
+        raise ValueError(f"agent import path {path!r}: expected a module that imports cleanly, but importing {module!r} "
+                         f"called sys.exit({exc.code!r})") from None
+    except Exception as exc:  # the module's own code failed
+        raise ValueError(f"agent import path {path!r}: expected a module that imports cleanly, but importing {module!r} "
+                         f"raised {type(exc).__name__}: {exc}") from exc
     try:
         return getattr(mod, attr)
     except AttributeError:

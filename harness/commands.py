@@ -6,8 +6,12 @@
 from __future__ import annotations
 
 import argparse
+import contextlib
 import json
+import shlex
+import signal
 import sys
+import threading
 import time
 from pathlib import Path
 
@@ -28,9 +32,11 @@ def parse_agent_options(items: list[str] | None, flag: str = "--agent-option") -
     return out
 
 
-def _print_summary(records: list[dict], stream=sys.stdout) -> None:
+def _print_summary(records: list[dict], stream=None) -> None:
+    """The summary table of ``records`` on ``stream`` (default: ``sys.stdout`` as it is now)."""
     from harness.report.stats import summarize
 
+    stream = sys.stdout if stream is None else stream
     rows = summarize(records)
     if not rows:
         print("no results", file=stream)
@@ -49,27 +55,123 @@ def _print_summary(records: list[dict], stream=sys.stdout) -> None:
         print(f"{r.suite:<22} {r.agent:<28} {r.encoder:<10} {r.n:>4} {r.n_failed + r.n_timeout:>4} {wall}  " + "; ".join(parts), file=stream)
 
 
+_SETTINGS_FLAGS = {"suite": "--suite", "agent": "--agent", "agent_option": "--agent-option", "encoder": "--encoder",
+                   "limit": "--limit", "seed": "--seed", "seeds": "--seeds", "plugin": "--import"}
+"""``cfharness run`` arguments that are the run's settings (stored in ``run.json``); attribute -> flag."""
+
+
+def _run_config(args: argparse.Namespace):
+    """The :class:`~harness.runner.run.RunConfig` of ``cfharness run``'s arguments. ``--resume``
+    with none of the settings flags (:data:`_SETTINGS_FLAGS`) continues with the settings stored
+    in ``--out``'s ``run.json``, so ``cfharness run --out DIR --resume`` finishes any run."""
+    from harness.runner.results import read_run_config
+    from harness.runner.run import RunConfig
+    from harness.runner.suites import DEFAULT_SUITES
+
+    common = dict(backend=args.backend, workers=args.workers, address=args.address, timeout_s=args.timeout, record=args.record)
+    if args.resume and all(getattr(args, name) is None for name in _SETTINGS_FLAGS):
+        from harness.runner.folder import check_run_folder
+
+        stored = read_run_config(check_run_folder(args.out)).get("settings")
+        if not isinstance(stored, dict) or not isinstance(stored.get("suites"), list):
+            raise ValueError(f"{args.out}: expected stored settings with a 'suites' list in run.json, got {stored!r}")
+        return RunConfig(
+            suites=tuple(stored["suites"]), agents=tuple(stored["agents"]) if stored.get("agents") else None,
+            encoder=stored.get("encoder"), agent_kwargs=dict(stored.get("agent_kwargs") or {}), limit=stored.get("limit"),
+            seed=stored.get("seed", 0), seeds=stored.get("seeds", 1), plugins=tuple(stored.get("plugins") or ()), **common,
+        )
+    return RunConfig(
+        suites=tuple(args.suite or DEFAULT_SUITES), agents=tuple(args.agent) if args.agent else None, encoder=args.encoder,
+        agent_kwargs=parse_agent_options(args.agent_option), limit=args.limit,
+        seed=0 if args.seed is None else args.seed, seeds=1 if args.seeds is None else args.seeds,
+        plugins=tuple(args.plugin or ()), **common,
+    )
+
+
+class RunTerminated(KeyboardInterrupt):
+    """``SIGTERM`` during ``cfharness run``: stops the run as Ctrl-C does (a ``KeyboardInterrupt``,
+    so every job lets it through and closes its environments), with exit status 143."""
+
+
+@contextlib.contextmanager
+def _sigterm_stops_the_run():
+    """Within the block, ``SIGTERM`` raises :class:`RunTerminated` in the main thread (as
+    ``SIGINT`` raises ``KeyboardInterrupt``); the previous handler comes back afterwards."""
+    if threading.current_thread() is not threading.main_thread():
+        yield
+        return
+
+    def on_term(signum, frame):
+        raise RunTerminated()
+
+    previous = signal.signal(signal.SIGTERM, on_term)
+    try:
+        yield
+    finally:
+        signal.signal(signal.SIGTERM, previous)
+
+
+def _interrupted(exc: KeyboardInterrupt, out: str, plan) -> int:
+    """One line on stderr for a run stopped by Ctrl-C (exit status 130) or ``SIGTERM`` (143):
+    what is kept and the command that finishes the run."""
+    from harness.runner.results import load_results
+
+    signame, status = ("SIGTERM", 143) if isinstance(exc, RunTerminated) else ("Ctrl-C", 130)
+    if plan is None:
+        print(f"cfharness run: stopped by {signame} before the first episode; nothing was run", file=sys.stderr)
+        return status
+    try:
+        n = len(load_results(plan.results))
+        kept = f"{n} finished record{'' if n == 1 else 's'}"
+    except (ValueError, OSError):
+        kept = "the finished records"
+    resume = f"cfharness run --out {shlex.quote(str(out))} --resume"
+    print(f"cfharness run: stopped by {signame}; {kept} kept in {plan.results} "
+          f"({len(plan.jobs)} planned); finish the run with: {resume}", file=sys.stderr)
+    return status
+
+
 def cmd_run(args: argparse.Namespace) -> int:
     """``cfharness run``: every setting is checked (:class:`~harness.runner.run.RunConfig`) and
     the backend reached (:func:`~harness.runner.run.plan_run`) before anything is written to
-    ``--out``; a bad one is one line on stderr and exit status 2."""
-    from harness.runner.backends import RayUnavailableError
-    from harness.runner.run import RunConfig, plan_run
-    from harness.runner.suites import DEFAULT_SUITES
-
-    suites = tuple(args.suite or DEFAULT_SUITES)
+    ``--out``; a bad one is one line on stderr and exit status 2. The run holds ``--out`` for its
+    whole life (:mod:`harness.runner.folder`): a second run on the same folder is refused with
+    status 2, naming the holder. Ctrl-C stops the run with status 130 (``SIGTERM``: 143), keeping
+    every finished record and printing the command that resumes it."""
+    plan = None
     try:
-        config = RunConfig(
-            suites=suites, agents=tuple(args.agent) if args.agent else None, encoder=args.encoder,
-            agent_kwargs=parse_agent_options(args.agent_option), limit=args.limit, seed=args.seed, seeds=args.seeds, backend=args.backend,
-            workers=args.workers, address=args.address, timeout_s=args.timeout, plugins=tuple(args.plugin or ()),
-            record=args.record,
-        )
-        floor_as = _parse_floor_as(args.floor_as, config)
-        plan = plan_run(config, args.out, resume=args.resume)
-    except (ValueError, TypeError, FileExistsError, FileNotFoundError, RayUnavailableError) as exc:
-        print(f"cfharness run: {exc}", file=sys.stderr)
-        return 2
+        with _sigterm_stops_the_run():
+            try:
+                config = _run_config(args)
+                floor_as = _parse_floor_as(args.floor_as, config)
+                plan = _plan(config, args.out, args.resume)
+            except (ValueError, TypeError, OSError) as exc:
+                print(f"cfharness run: {exc}", file=sys.stderr)
+                return 2
+            try:
+                return _execute(args, config, plan, floor_as)
+            finally:
+                plan.close()
+    except KeyboardInterrupt as exc:
+        return _interrupted(exc, args.out, plan)
+
+
+def _plan(config, out: str, resume: bool):
+    """:func:`~harness.runner.run.plan_run`, with a Ray backend that cannot start reported as a bad setting."""
+    from harness.runner.backends import RayUnavailableError
+    from harness.runner.run import plan_run
+
+    try:
+        return plan_run(config, out, resume=resume)
+    except RayUnavailableError as exc:
+        raise ValueError(str(exc)) from exc
+
+
+def _execute(args: argparse.Namespace, config, plan, floor_as: dict[str, str]) -> int:
+    """Run a planned ``cfharness run``: the jobs, the summary, the report and the regression bounds."""
+    from harness.runner.backends import RayUnavailableError
+
+    suites = config.suites
     t0 = time.monotonic()
     print(f"run {args.out}: suites {', '.join(suites)}; encoder {config.encoder or 'each suite default'}; backend {config.backend}", file=sys.stderr)
     stopped: list[dict] = []  # the record that settled a regression (--fail-fast)
@@ -344,8 +446,8 @@ def add_eval_commands(sub) -> None:
     run.add_argument("--encoder", default=None, help="perception for map agents and map suites: embedded, embedded-v2, oracle, oracle-open (privileged), hf:..., onnx:DIR (default: each suite's own, the shipped tower of its world: embedded for v1 suites, embedded-v2 for v2 suites)")
     # numbers arrive as text: RunConfig checks them, with the same messages for Python callers
     run.add_argument("--limit", metavar="N", help="first N >= 1 episodes / scenes per suite")
-    run.add_argument("--seed", metavar="N", default=0, help="episode seed >= 0 (default 0)")
-    run.add_argument("--seeds", metavar="N", default=1, help="seeds per episode >= 1: each episode runs with seeds "
+    run.add_argument("--seed", metavar="N", help="episode seed >= 0 (default 0)")
+    run.add_argument("--seeds", metavar="N", help="seeds per episode >= 1: each episode runs with seeds "
                      "SEED, SEED+1, ..., SEED+N-1, and the report gives the between-seed spread (default 1)")
     run.add_argument("--backend", default="process", metavar="{" + ",".join(BACKENDS) + "}",
                      help="where episodes run (default: process pool; serial runs in this process, where an agent "
@@ -356,7 +458,8 @@ def add_eval_commands(sub) -> None:
     run.add_argument("--timeout", metavar="SECONDS", help="seconds > 0 per episode before it is recorded as timeout "
                      "(default: the suite's, 600)")
     run.add_argument("--out", default="runs/main", help="run folder (default: runs/main)")
-    run.add_argument("--resume", action="store_true", help="finish an interrupted run in --out")
+    run.add_argument("--resume", action="store_true", help="finish an interrupted run in --out (with no settings flags: "
+                     "the settings stored in its run.json)")
     run.add_argument("--no-report", action="store_true", help="skip writing the report")
     run.add_argument("--floor-as", action="append", metavar="AGENT=BUILTIN",
                      help="in the regression suites, hold --agent AGENT to the calibrated floor (or ceiling) of the "

@@ -40,7 +40,7 @@ from conceptfusion.perception.clip_hf import ClipPreprocess, clip_preprocess
 from conceptfusion.perception.encoders import check_texts, embed_in_batches, onnx_session_options, unit_rows
 from conceptfusion.errors import CheckpointError, MissingDependencyError
 
-__all__ = ["OnnxClipEncoder", "export_clip_to_onnx", "MANIFEST_NAME", "LAYOUT_FILES"]
+__all__ = ["OnnxClipEncoder", "export_clip_to_onnx", "check_onnx_folder", "MANIFEST_NAME", "LAYOUT_FILES"]
 
 logger = logging.getLogger(__name__)
 
@@ -51,6 +51,21 @@ MANIFEST_NAME = "clip_onnx.json"
 """Name of the JSON manifest in an ONNX CLIP folder."""
 LAYOUT_FILES = ("image.onnx", "text.onnx", "tokenizer.json", MANIFEST_NAME)
 """Every file an ONNX CLIP folder must hold."""
+
+
+def check_onnx_folder(folder: str | Path) -> Path:
+    """``folder`` as a path, once it holds every file of :data:`LAYOUT_FILES` (reads none of them).
+
+    Raises:
+        FileNotFoundError: no folder there, or a file missing (naming them).
+    """
+    d = Path(folder).expanduser()
+    if not d.is_dir():
+        raise FileNotFoundError(f"{d}: no such folder; expected an ONNX CLIP folder with {', '.join(LAYOUT_FILES)}")
+    missing = [f for f in LAYOUT_FILES if not (d / f).is_file()]
+    if missing:
+        raise FileNotFoundError(f"{d}: expected {', '.join(LAYOUT_FILES)} in an ONNX CLIP folder, missing {', '.join(missing)}")
+    return d
 
 
 def _read_manifest(path: Path) -> dict:
@@ -111,12 +126,7 @@ class OnnxClipEncoder:
     def __init__(self, folder: str | Path, *, batch_size: int = 32, threads: int | None = None) -> None:
         if not isinstance(batch_size, int) or batch_size < 1:
             raise ValueError(f"batch_size: expected an int >= 1, got {batch_size!r}")
-        d = Path(folder).expanduser()
-        if not d.is_dir():
-            raise FileNotFoundError(f"{d}: no such folder; expected an ONNX CLIP folder with {', '.join(LAYOUT_FILES)}")
-        missing = [f for f in LAYOUT_FILES if not (d / f).is_file()]
-        if missing:
-            raise FileNotFoundError(f"{d}: expected {', '.join(LAYOUT_FILES)} in an ONNX CLIP folder, missing {', '.join(missing)}")
+        d = check_onnx_folder(folder)
         try:
             from tokenizers import Tokenizer
         except ImportError as exc:

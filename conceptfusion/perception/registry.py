@@ -22,11 +22,12 @@ called, so importing this module is cheap.
 from __future__ import annotations
 
 import importlib.util
+from pathlib import Path
 from typing import Callable
 
 from conceptfusion.names import unknown_name_error
 
-__all__ = ["ENCODERS", "DEFAULT_ENCODER", "parse_encoder_spec", "make_encoder", "describe_encoders"]
+__all__ = ["ENCODERS", "DEFAULT_ENCODER", "parse_encoder_spec", "make_encoder", "check_encoder_files", "describe_encoders"]
 
 DEFAULT_ENCODER = "embedded"
 """The spec the harness uses when none is given: the shipped embedded tower (offline, CPU)."""
@@ -140,6 +141,65 @@ def make_encoder(spec: str):
     """
     name, arg = parse_encoder_spec(spec)
     return ENCODERS[name](arg)
+
+
+def _hf_available(arg: str | None) -> None:
+    """A local checkpoint folder with its config and weights, or a hub id in the local Hugging Face
+    cache; nothing is looked up online (a run fetches no model: download it first)."""
+    from conceptfusion.perception.clip_hf import check_checkpoint_folder, resolve_source
+
+    ref, local = resolve_source(_need_arg("hf", arg, "hub id or dir"))
+    if local:
+        check_checkpoint_folder(Path(ref))
+        return
+    try:
+        from huggingface_hub import constants, try_to_load_from_cache
+    except ImportError:  # transformers brings huggingface_hub: HFClipEncoder names the extra to install
+        return
+    if isinstance(try_to_load_from_cache(ref, "config.json"), str):
+        return
+    raise FileNotFoundError(f"hf:{ref}: expected a model in the local Hugging Face cache ({constants.HF_HUB_CACHE}) or a "
+                            f"checkpoint folder (hf:/path/to/dir), found neither; nothing is downloaded during a run: "
+                            f"fetch it first (huggingface-cli download {ref})")
+
+
+def _onnx_available(arg: str | None) -> None:
+    from conceptfusion.perception.clip_onnx import check_onnx_folder
+
+    check_onnx_folder(_need_arg("onnx", arg, "dir"))
+
+
+def _folder_available(name: str):
+    def check(arg: str | None) -> None:
+        if arg is None:  # the shipped weights
+            return
+        d = Path(_need_arg(name, arg, "dir")).expanduser()
+        if not d.is_dir():
+            raise FileNotFoundError(f"{name}:{arg}: expected a folder of {name} weights, no folder is there")
+    return check
+
+
+_AVAILABLE: dict[str, Callable[[str | None], None]] = {
+    "hf": _hf_available, "onnx": _onnx_available, "embedded": _folder_available("embedded"),
+    "audio-onnx": _folder_available("audio-onnx"),
+}
+"""Encoder name -> a cheap check that its weights are there (loads nothing)."""
+
+
+def check_encoder_files(spec: str) -> None:
+    """Check, before anything runs, that the encoder a spec names can be loaded: a folder argument
+    exists with the files the encoder needs, a Hugging Face hub id is in the local cache; loads no
+    weights and touches no network.
+
+    Raises:
+        ValueError: as :func:`parse_encoder_spec`, or a missing argument.
+        FileNotFoundError: the folder, a file in it or the hub id is not there (naming it).
+        CheckpointError: a checkpoint folder without its config or weights.
+    """
+    name, arg = parse_encoder_spec(spec)
+    check = _AVAILABLE.get(name)
+    if check is not None:
+        check(arg)
 
 
 def describe_encoders() -> dict[str, str]:

@@ -45,7 +45,7 @@ from conceptfusion.io_utils import atomic_write_bytes, atomic_write_text
 from harness.report import plots as report_plots
 from harness.report.episodes import episode_table
 from harness.report.document import Bullets, Cell, Figure, Heading, Paragraph, ReportDocument, Table, render_markdown
-from harness.runner.results import RESULTS_FILE, ResultsFormatError, load_results, record_key
+from harness.runner.results import RESULTS_FILE, ResultsFormatError, load_results, record_key, warn_record_problems
 from harness.report.stats import group_key, paired_comparison, per_category, seed_spread, summarize, within_noise
 
 __all__ = ["write_report", "build_report", "write_markdown", "REPORT_FILE"]
@@ -73,6 +73,8 @@ def _collect(inputs, base_dir) -> list[tuple[dict, Path | None, str]]:
                 raise MissingFileError(f"write_report: no results at {results} (expected a run folder holding "
                                        f"{RESULTS_FILE}, or a results file)")
             out.extend((r, results.parent, str(results.parent)) for r in load_results(results))
+            if p.is_dir():
+                warn_record_problems(p)  # another run's records, two outcomes of one episode
         else:
             raise TypeError(f"write_report: expected run folders (paths) or records (dicts), got {type(item).__name__}")
     return out

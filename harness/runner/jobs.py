@@ -82,12 +82,25 @@ def job_record(job: Job, *, status: str, error: str | None = None, metrics: dict
 
 
 def import_plugins(plugins: Iterable[str] | None) -> None:
-    """Import the modules that register user agents; ``ValueError`` naming the one that fails."""
+    """Import the modules that register user agents.
+
+    Raises:
+        ValueError: naming the module that fails and how: it cannot be found or imported
+            (``ImportError``), its code raised (the exception's type and message), or it called
+            ``sys.exit`` while being imported (refused, instead of ending the caller with its
+            exit code).
+    """
     for name in plugins or ():
         try:
             importlib.import_module(name)
         except ImportError as exc:
             raise ValueError(f"--import {name!r}: cannot import it: {exc}") from exc
+        except SystemExit as exc:
+            raise ValueError(f"--import {name!r}: expected a module that registers agents, but importing it called "
+                             f"sys.exit({exc.code!r}); refusing to run") from None
+        except Exception as exc:  # the module's own code failed
+            raise ValueError(f"--import {name!r}: expected a module that imports cleanly, but importing it raised "
+                             f"{type(exc).__name__}: {exc}") from exc
 
 
 @contextlib.contextmanager

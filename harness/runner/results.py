@@ -19,7 +19,9 @@ reading for a report, but :func:`repair_results` refuses it (naming the lines) s
 run never appends after junk.
 
 The run's settings live next to the results in ``run.json`` (:func:`write_run_config`), so a
-resumed run can check that it continues the same run.
+resumed run can check that it continues the same run; every record carries its ``run_id``, and
+:func:`check_run_records` refuses, before a resumed run appends, a record of another run or two
+records of one episode with different outcomes (naming file and lines).
 """
 
 from __future__ import annotations
@@ -39,7 +41,7 @@ __all__ = [
     "RESULTS_FORMAT", "RESULTS_VERSION", "RUN_CONFIG_FORMAT", "RUN_CONFIG_VERSION", "RESULTS_FILE", "RUN_CONFIG_FILE",
     "STATUSES", "ResultsFormatError", "EpisodeKey", "agent_label", "record_key", "make_record", "append_record",
     "load_results", "repair_results", "completed_keys", "latest_records", "write_run_config", "read_run_config",
-    "check_run_config", "harness_version", "load_runs",
+    "check_run_config", "check_run_records", "warn_record_problems", "harness_version", "load_runs",
 ]
 
 RESULTS_FORMAT = "cf-results"
@@ -302,15 +304,16 @@ def _describe(raw: bytes) -> str:
     return f"text {text[:40]!r}" + ("..." if len(text) > 40 else "")
 
 
-def _scan(data: bytes, where: str) -> tuple[list[dict], int, list[tuple[int, str]], str | None]:
+def _scan(data: bytes, where: str) -> tuple[list[dict], int, list[tuple[int, str]], str | None, list[int]]:
     """Parse the complete lines.
 
     Returns the records, the byte length of the good prefix (everything but a half-written last
-    line), the corrupt lines elsewhere as ``(line number, reason)`` and the warning about a
-    half-written last line (None: there is none). A line that is JSON but not a valid record
+    line), the corrupt lines elsewhere as ``(line number, reason)``, the warning about a
+    half-written last line (None: there is none) and each record's line number. A line that is JSON but not a valid record
     raises ``ResultsFormatError`` (file, line, field) at once.
     """
     records: list[dict] = []
+    numbers: list[int] = []
     corrupt: list[tuple[int, str]] = []
     lines = data.split(b"\n")
     complete_end = len(data) - len(lines[-1])  # bytes up to and including the last newline
@@ -326,19 +329,21 @@ def _scan(data: bytes, where: str) -> tuple[list[dict], int, list[tuple[int, str
             rec = json.loads(raw)
         except (json.JSONDecodeError, UnicodeDecodeError, RecursionError) as exc:
             if i == len(body) and not tail.strip():
-                return records, good_end, corrupt, f"{where}: line {i}: skipping a half-written last line ({exc})"
+                return records, good_end, corrupt, f"{where}: line {i}: skipping a half-written last line ({exc})", numbers
             corrupt.append((i, f"{_describe(raw)}, not a JSON record ({exc})"))
             good_end = offset
             continue
         _check_header(rec, f"{where}: line {i}")
         _check_record(rec, f"{where}: line {i}")
         records.append(rec)
+        numbers.append(i)
         good_end = offset
     if tail.strip():
-        return records, good_end, corrupt, f"{where}: line {len(body) + 1}: skipping a half-written last line (no newline)"
+        return (records, good_end, corrupt, f"{where}: line {len(body) + 1}: skipping a half-written last line (no newline)",
+                numbers)
     if good_end == complete_end:
         good_end = len(data)  # keep trailing whitespace after the last newline
-    return records, good_end, corrupt, None
+    return records, good_end, corrupt, None, numbers
 
 
 def _read(p: Path) -> bytes:
@@ -362,7 +367,7 @@ def load_results(path: str | os.PathLike, *, strict: bool = False) -> list[dict]
     p = Path(path)
     if not p.exists():
         return []
-    records, _, corrupt, half_written = _scan(_read(p), str(p))
+    records, _, corrupt, half_written, _ = _scan(_read(p), str(p))
     if corrupt and (strict or not records):
         no, why = corrupt[0]
         lead = f"{p}: line {no}: corrupt record: {why}"
@@ -389,7 +394,7 @@ def repair_results(path: str | os.PathLike) -> int:
     if not p.exists():
         return 0
     data = _read(p)
-    _, good_end, corrupt, _ = _scan(data, str(p))
+    _, good_end, corrupt, _, _ = _scan(data, str(p))
     if corrupt:
         listed = "; ".join(f"line {no}: {why}" for no, why in corrupt[:3]) + ("; ..." if len(corrupt) > 3 else "")
         raise ResultsFormatError(f"{p}: holds {len(corrupt)} corrupt line(s) that a killed run does not leave "
@@ -401,8 +406,79 @@ def repair_results(path: str | os.PathLike) -> int:
     return len(data) - good_end
 
 
+def _outcome(record: dict) -> tuple:
+    """What two records of one episode key must agree on to be the same result: status and metrics
+    (not timings, finish time or the error's traceback text)."""
+    return record.get("status"), json.dumps(record.get("metrics") or {}, sort_keys=True)
+
+
+def _key_words(key: EpisodeKey) -> str:
+    return f"{key.suite} {key.agent} [{key.encoder}] episode {key.episode_id} seed {key.seed}"
+
+
+def _record_problems(path: Path, run_id: str):
+    """Each problem of ``path`` for a run of ``run_id`` (see :func:`check_run_records`), in file order, as one line."""
+    records, _, _, _, numbers = _scan(_read(path), str(path))
+    first: dict[EpisodeKey, tuple[int, dict]] = {}
+    for no, rec in zip(numbers, records):
+        if rec["run_id"] != run_id:
+            yield (f"{path}: line {no}: expected records of this folder's run {run_id!r} (its {RUN_CONFIG_FILE}), got a "
+                   f"record of run {rec['run_id']!r}")
+            continue
+        key = record_key(rec)
+        if key not in first:
+            first[key] = (no, rec)
+            continue
+        no0, rec0 = first[key]
+        if _outcome(rec0) != _outcome(rec):
+            yield (f"{path}: lines {no0} and {no}: expected one outcome per episode, got two records of {_key_words(key)} "
+                   f"that differ (status {rec0['status']} vs {rec['status']}, metrics {_outcome(rec0)[1]} vs "
+                   f"{_outcome(rec)[1]})")
+
+
+def check_run_records(path: str | os.PathLike, run_id: str) -> None:
+    """Refuse a results file that a resumed run of ``run_id`` must not append to; a missing file passes.
+
+    Every record must carry ``run_id`` (a record of another run was appended by something else:
+    another run writing to the same folder, files concatenated), and two records of one
+    :class:`EpisodeKey` (suite, agent and its options, encoder, episode, seed) must have the same
+    outcome (status and metrics). Identical duplicates pass: they count once
+    (:func:`latest_records`) and are left in the file.
+
+    Raises:
+        ResultsFormatError: naming the file, the line(s) and what differs; and as :func:`load_results`.
+    """
+    p = Path(path)
+    if not p.exists():
+        return
+    for problem in _record_problems(p, run_id):
+        fix = ("records of another run do not belong here: move them to their own folder and resume again"
+               if "expected records of" in problem else "delete the wrong one and resume again")
+        raise ResultsFormatError(f"{problem}; {fix}")
+
+
+def warn_record_problems(folder: str | os.PathLike) -> None:
+    """Warn (for ``report`` and ``compare``) about the records of a run folder that are not its
+    run's or that disagree with another record of their episode (see :func:`check_run_records`),
+    one warning each, naming file and line(s): the report counts the last record of each episode.
+    A folder without a readable ``run.json`` is not checked."""
+    folder = Path(folder)
+    try:
+        run_id = read_run_config(folder).get("run_id")
+    except (OSError, ValueError):  # no or unreadable run.json: nothing to hold the records to
+        return
+    if not isinstance(run_id, str):
+        return
+    for problem in _record_problems(folder / RESULTS_FILE, run_id):
+        warnings.warn(f"{problem}; the report counts the last record of each episode", stacklevel=3)
+
+
 def load_runs(run_dirs) -> list[dict]:
     """Records of run folders (or results files), in order, for ``report`` and ``compare``.
+
+    A run folder's record of another run than its ``run.json`` names, or one that disagrees with
+    another record of its episode (see :func:`check_run_records`), is a warning naming the file
+    and the line(s); the report counts the last record of each episode.
 
     Raises :class:`~conceptfusion.errors.MissingFileError` naming a path that does not exist
     or a folder that holds no :data:`RESULTS_FILE`, and ``ResultsFormatError`` as
@@ -420,6 +496,8 @@ def load_runs(run_dirs) -> list[dict]:
         if not results.is_file():
             raise MissingFileError(f"{p}: no {RESULTS_FILE} here; is it a run folder?")
         records.extend(load_results(results))
+        if p.is_dir():
+            warn_record_problems(p)
     if not records:
         raise ResultsFormatError(f"no records in {', '.join(str(x) for x in paths)} (empty results file?)")
     return records

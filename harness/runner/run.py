@@ -6,8 +6,10 @@ them go to one backend through :func:`harness.runner.backends.run_jobs`.
 
 A run lives in a folder: ``run.json`` (its settings) and ``results.jsonl`` (one record per
 episode or map case, appended as each finishes, so an interrupted run loses at most the jobs in
-flight). ``resume=True`` repairs a half-written last line, checks the settings match, and runs
-only the jobs without a record.
+flight). One run at a time holds the folder (:mod:`harness.runner.folder`, an OS lock released
+when the process ends): another process's run on it is refused. ``resume=True`` repairs a
+half-written last line, checks the settings match and that every record is this run's (one
+outcome per episode), and runs only the jobs without a record.
 
 Settings are checked when a :class:`RunConfig` is made
 (:func:`~harness.runner.settings.validate_run_config`): names
@@ -30,10 +32,12 @@ from typing import Callable
 
 from agents.registry import AGENTS, resolve_agent
 from harness.runner.backends import check_backend, run_jobs
+from harness.runner.folder import RunLock, check_run_folder, lock_run_folder, refuse_if_busy
 from harness.runner.jobs import Job, import_plugins
 from harness.runner.map_jobs import map_suite_jobs
 from harness.runner.results import (
-    agent_label, append_record, completed_keys, load_results, read_run_config, record_key, repair_results, write_run_config,
+    agent_label, append_record, check_run_records, completed_keys, load_results, read_run_config, record_key, repair_results,
+    write_run_config,
 )
 from harness.runner.settings import accepts_keyword, check_agent, validate_run_config
 from harness.runner.suites import Suite, get_suite, suite_encoder, suite_episodes
@@ -196,6 +200,13 @@ class RunPlan:
     """Every job of the run, in order."""
     todo: list[Job]
     """The jobs without a record yet (all of them for a new run)."""
+    lock: RunLock | None = None
+    """This process's hold on ``run_dir`` (:func:`~harness.runner.folder.lock_run_folder`), until :meth:`close`."""
+
+    def close(self) -> None:
+        """Give up the run folder, so another process's run may take it (the end of the process does too)."""
+        if self.lock is not None:
+            self.lock.release()
 
     @property
     def results(self) -> Path:
@@ -227,42 +238,68 @@ class RunPlan:
 
 
 def plan_run(config: RunConfig, run_dir: str | Path, *, resume: bool = False) -> RunPlan:
-    """Prepare a run: build every job (a bad agent or option fails here), check that the
-    backend is reachable (:func:`~harness.runner.backends.check_backend`, a bounded connect),
-    and only then write ``run.json`` (or, with ``resume``, repair a half-written last line of
-    the results).
+    """Prepare a run: check the folder (:func:`~harness.runner.folder.check_run_folder`) and that no
+    other process's run holds it, build every job (a bad agent or option fails here), check that
+    the backend is reachable (:func:`~harness.runner.backends.check_backend`, a bounded connect),
+    and only then take the folder (:func:`~harness.runner.folder.lock_run_folder`, held until
+    :meth:`RunPlan.close`) and write ``run.json`` (or, with ``resume``, repair a half-written last
+    line of the results and check that every record belongs to this run:
+    :func:`~harness.runner.results.check_run_records`).
 
     A folder whose run never recorded a result (a start that failed or was stopped early) is
     started afresh: its ``run.json`` is replaced.
 
     Raises:
         FileExistsError: ``run_dir`` holds results and ``resume`` is False.
-        ValueError: ``resume`` with settings other than the stored ones.
+        ValueError: ``resume`` with settings other than the stored ones; an ``--out`` that cannot
+            be a run folder; a folder another process's run holds
+            (:class:`~harness.runner.folder.RunFolderBusyError`); with ``resume``, a results file
+            with another run's records or two different outcomes of one episode.
         FileNotFoundError: ``resume`` in a folder without ``run.json``.
         RayUnavailableError: the Ray backend is not installed or its cluster does not answer.
     """
-    run_dir = Path(run_dir)
+    run_dir = check_run_folder(run_dir)
+    refuse_if_busy(run_dir)
     results = run_dir / "results.jsonl"
     suites = [get_suite(s) for s in config.suites]
     if resume:
-        stored = read_run_config(run_dir)
-        if stored.get("settings") != config.settings():
-            raise ValueError(f"{run_dir}: --resume expects the settings the run started with: {stored.get('settings')}, got {config.settings()}")
-        run_id = stored["run_id"]
+        run_id = _stored_run_id(config, run_dir)
     else:
-        if results.exists() and results.stat().st_size > 0:
-            raise FileExistsError(f"{run_dir} already holds results; use --resume to finish it or choose another --out")
+        _refuse_results(run_dir)
         run_id = uuid.uuid4().hex[:12]
     jobs = [job for suite in suites for job in suite_jobs(suite, config, run_id, run_dir)]
     check_backend(config.backend, config.address, workers=config.workers)
-    if resume:
-        repair_results(results)
-    else:
-        write_run_config(run_dir, {"run_id": run_id, "settings": config.settings(), "backend": config.backend,
-                                   "record": config.record}, overwrite=True)
-    done = completed_keys(load_results(results))
+    lock = lock_run_folder(run_dir, run_id)
+    try:  # again, now that no other run can change the folder
+        if resume:
+            if _stored_run_id(config, run_dir) != run_id:
+                raise ValueError(f"{run_dir}: its run.json changed while this run was being planned; resume again")
+            repair_results(results)
+            check_run_records(results, run_id)
+        else:
+            _refuse_results(run_dir)
+            write_run_config(run_dir, {"run_id": run_id, "settings": config.settings(), "backend": config.backend,
+                                       "record": config.record}, overwrite=True)
+        done = completed_keys(load_results(results))
+    except BaseException:
+        lock.release()
+        raise
     todo = [j for j in jobs if record_key(j.key_record()) not in done]
-    return RunPlan(config, run_dir, run_id, jobs, todo)
+    return RunPlan(config, run_dir, run_id, jobs, todo, lock)
+
+
+def _stored_run_id(config: RunConfig, run_dir: Path) -> str:
+    """The run id in ``run_dir/run.json``, once its settings are ``config``'s (a ``ValueError`` otherwise)."""
+    stored = read_run_config(run_dir)
+    if stored.get("settings") != config.settings():
+        raise ValueError(f"{run_dir}: --resume expects the settings the run started with: {stored.get('settings')}, got {config.settings()}")
+    return stored["run_id"]
+
+
+def _refuse_results(run_dir: Path) -> None:
+    results = run_dir / "results.jsonl"
+    if results.exists() and results.stat().st_size > 0:
+        raise FileExistsError(f"{run_dir} already holds results; use --resume to finish it or choose another --out")
 
 
 def run_missing_jobs(jobs: list[Job], results: str | Path, *, backend: str = "process", workers: int | None = None,
@@ -291,7 +328,11 @@ def run_suites(
     name fails before any work, then run together on ``config.backend`` (:func:`plan_run`, then
     :meth:`RunPlan.execute`).
     """
-    return plan_run(config, run_dir, resume=resume).execute(on_record=on_record, progress=progress)
+    plan = plan_run(config, run_dir, resume=resume)
+    try:
+        return plan.execute(on_record=on_record, progress=progress)
+    finally:
+        plan.close()
 
 
 def _progress_note(rec: dict) -> str:

@@ -13,6 +13,7 @@ from __future__ import annotations
 
 import inspect
 import math
+import typing
 from typing import Any, Callable
 
 from agents.registry import AGENTS, agent_names, resolve_agent
@@ -20,6 +21,7 @@ from agents.spec import Option, check_option
 from conceptfusion.errors import HarnessError
 from conceptfusion.names import did_you_mean, unknown_name_error
 from conceptfusion.perception.featurizer import PerceptionSpec
+from conceptfusion.perception.registry import check_encoder_files
 from harness.maps.spatial import DEFAULT_PARSER, SUITE_PARSERS
 from harness.maps.suites import MAP_SUITES
 from harness.replay.record import check_record_mode
@@ -27,7 +29,7 @@ from harness.runner.backends import BACKENDS, parse_ray_address
 from harness.runner.jobs import import_plugins
 from harness.runner.suites import SUITES, Suite, get_suite
 
-__all__ = ["validate_run_config", "MAP_SUITE_OPTIONS", "check_agent", "accepts_keyword"]
+__all__ = ["validate_run_config", "MAP_SUITE_OPTIONS", "check_agent", "check_agent_factory", "accepts_keyword"]
 
 
 MAP_SUITE_OPTIONS: dict[str, Option] = {
@@ -108,6 +110,62 @@ def _keywords(factory: Callable) -> list[str]:
     except (TypeError, ValueError):
         return []
     return [p.name for p in params if p.kind in (inspect.Parameter.POSITIONAL_OR_KEYWORD, inspect.Parameter.KEYWORD_ONLY)]
+
+
+def _describe(obj: Any) -> str:
+    name = f"{getattr(obj, '__module__', None) or '?'}.{getattr(obj, '__qualname__', None) or type(obj).__name__}"
+    if inspect.isclass(obj):
+        return f"class {name}"
+    if inspect.isbuiltin(obj):
+        return f"built-in function {name}"
+    return f"{type(obj).__name__} {obj!r}"[:120] if not callable(obj) else f"{type(obj).__name__} {name}"
+
+
+def check_agent_factory(agent: str, factory: Any, agent_kwargs: dict) -> None:
+    """Check, before any episode, that a user agent's import path names something that builds an
+    agent with the keywords the run passes (the ``agent_kwargs`` it accepts, and ``encoder`` when
+    it takes one), without building it:
+
+    - a class must have callable ``reset`` and ``act`` (on the class: ``privileged`` may be set
+      by ``__init__``, and is checked when the agent is built) and a constructor that takes those
+      keywords and needs no others;
+    - another Python callable (a factory function) must take those keywords and need no others,
+      and, when its return annotation is a class, that class must have ``reset`` and ``act``;
+      what an unannotated factory returns is checked when the first episode builds the agent
+      (a ``failed`` record naming what is missing);
+    - anything else (a built-in function such as ``os:getcwd``, a constant) is refused.
+
+    Raises:
+        HarnessError: naming the import path, what was expected and what it names.
+    """
+    expected = "an agent class with reset() and act(), or a function that builds one"
+    if not callable(factory) or inspect.isbuiltin(factory) or (
+            not inspect.isclass(factory) and not inspect.isroutine(factory) and type(factory).__module__ == "builtins"):
+        raise HarnessError(f"--agent {agent}: expected {expected}, got {_describe(factory)}")
+    made = factory if inspect.isclass(factory) else None
+    if made is None:
+        try:
+            made = typing.get_type_hints(factory).get("return")
+        except Exception:  # unresolvable annotations: nothing to learn from them
+            made = None
+    if inspect.isclass(made):
+        missing = [a for a in ("reset", "act") if not callable(getattr(made, a, None))]
+        if missing:
+            where = "" if made is factory else f", whose return annotation says it builds {_describe(made)}"
+            raise HarnessError(f"--agent {agent}: expected {expected}, got {_describe(factory)}{where} without "
+                               f"{' and '.join(m + '()' for m in missing)}")
+    try:
+        signature = inspect.signature(factory)
+    except (TypeError, ValueError):  # no signature to check
+        return
+    keywords = sorted({k for k in agent_kwargs if accepts_keyword(factory, k)}
+                      | ({"encoder"} if accepts_keyword(factory, "encoder", unknown=False) else set()))
+    try:
+        signature.bind(**{k: None for k in keywords})
+    except TypeError as exc:
+        raise HarnessError(f"--agent {agent}: expected {expected} from the keywords the run passes "
+                           f"({', '.join(keywords) or 'none'}), but {_describe(factory)}{signature} cannot be called "
+                           f"so: {exc}") from None
 
 
 def _resolve(agent: str) -> Callable:
@@ -196,10 +254,16 @@ def validate_run_config(config: Any) -> None:
                     check_agent(agent, suite)
                 except ValueError as exc:
                     raise HarnessError(f"--agent: {exc}") from exc
+        for agent in config.agents:
+            if agent not in AGENTS:
+                check_agent_factory(agent, _resolve(agent), config.agent_kwargs)
     try:
         if config.encoder is not None:
-            put("encoder", str(PerceptionSpec.parse(config.encoder)))
-    except (ValueError, TypeError) as exc:
+            spec = PerceptionSpec.parse(config.encoder)
+            if not spec.privileged:  # the oracles read the simulator: no files
+                check_encoder_files(spec.encoder)
+            put("encoder", str(spec))
+    except (ValueError, TypeError, OSError) as exc:
         raise HarnessError(f"--encoder: {exc}") from exc
     put("limit", _int(config.limit, "--limit", 1, "episodes or scenes per suite", allow_none=True))
     put("seed", _int(config.seed, "--seed", 0, "the episode seed"))

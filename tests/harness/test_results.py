@@ -143,3 +143,54 @@ def test_run_config(tmp_path):
     (tmp_path / "run.json").write_text(json.dumps({"format": "cf-run", "version": 9, "config": {}}))
     with pytest.raises(ResultsFormatError, match="version 9"):
         read_run_config(tmp_path)
+
+
+def test_check_run_records_refuses_another_runs_record_naming_the_line(tmp_path):
+    from harness.runner.results import check_run_records
+
+    path = tmp_path / "results.jsonl"
+    check_run_records(path, "r1")  # no file yet: nothing to refuse
+    for rec in (_rec("ep-0"), _rec("ep-1"), _rec("ep-2", run_id="r2")):
+        append_record(path, rec)
+    with pytest.raises(ResultsFormatError, match=rf"^{path}: line 3: expected records of this folder's run 'r1' \(its run.json\), "
+                                                 r"got a record of run 'r2'"):
+        check_run_records(path, "r1")
+
+
+def test_check_run_records_refuses_two_outcomes_of_one_episode_and_passes_identical_duplicates(tmp_path):
+    from harness.runner.results import check_run_records
+
+    path = tmp_path / "results.jsonl"
+    for rec in (_rec("ep-0"), _rec("ep-1"), _rec("ep-0", timings={"wall_s": 9.0})):  # the same outcome, other timings
+        append_record(path, rec)
+    check_run_records(path, "r1")
+    assert len(latest_records(load_results(path))) == 2  # counted once
+    append_record(path, _rec("ep-1", status="failed", metrics={"success": False}))
+    with pytest.raises(ResultsFormatError, match=rf"^{path}: lines 2 and 4: expected one outcome per episode, got two records of "
+                                                 r"search map-navigator\[integrate_every=3\] \[test\] episode ep-1 seed 0 that "
+                                                 r"differ \(status ok vs failed"):
+        check_run_records(path, "r1")
+    other_seed = tmp_path / "seeds.jsonl"  # another seed is another episode key, whatever its outcome
+    for rec in (_rec("ep-0"), _rec("ep-0", seed=1, metrics={"success": False})):
+        append_record(other_seed, rec)
+    check_run_records(other_seed, "r1")
+
+
+def test_report_loading_warns_about_another_runs_records_and_two_outcomes(tmp_path):
+    from harness.runner.results import load_runs
+
+    write_run_config(tmp_path, {"run_id": "r1", "settings": {}})
+    path = tmp_path / "results.jsonl"
+    for rec in (_rec("ep-0"), _rec("ep-1", run_id="r2"), _rec("ep-0", status="failed", metrics={"success": False})):
+        append_record(path, rec)
+    with pytest.warns(UserWarning) as caught:
+        records = load_runs([tmp_path])
+    assert len(records) == 3
+    messages = [str(w.message) for w in caught]
+    assert messages == [
+        f"{path}: line 2: expected records of this folder's run 'r1' (its run.json), got a record of run 'r2'; "
+        "the report counts the last record of each episode",
+        f"{path}: lines 1 and 3: expected one outcome per episode, got two records of search "
+        "map-navigator[integrate_every=3] [test] episode ep-0 seed 0 that differ (status ok vs failed, metrics "
+        '{"spl": 0.5, "success": true} vs {"success": false}); the report counts the last record of each episode',
+    ]
