@@ -22,7 +22,8 @@ ROOT = Path(__file__).resolve().parents[1]
 PACKAGES = ("conceptfusion", "planners", "sim_envs", "agents", "tower_training", "harness", "scenes")
 
 BASE = {"conceptfusion", "conceptfusion.errors", "conceptfusion.names", "conceptfusion.frames",
-        "conceptfusion.cameras", "conceptfusion.io_utils", "conceptfusion.tasks"}
+        "conceptfusion.cameras", "conceptfusion.io_utils", "conceptfusion.strict_json",
+        "conceptfusion.tasks"}
 """Plain data types and utilities of the core that the simulator and planner packages may use."""
 
 ALLOWED = {

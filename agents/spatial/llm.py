@@ -6,7 +6,9 @@ vLLM server), and validates the reply against the eight signatures with
 :func:`agents.spatial.signature.parse_signature`. Only the standard library is used.
 
 Failure policy: a server that is unreachable, too slow, answers an HTTP error, or returns
-something that is not exactly one known call with two arguments gives a cannot-parse
+something that is not exactly one known call with two arguments (or a reply that is not JSON to
+read: nested deeper than :data:`~conceptfusion.strict_json.MAX_JSON_DEPTH`, a key twice, a huge
+integer; :func:`~conceptfusion.strict_json.loads_strict`) gives a cannot-parse
 :class:`~agents.spatial.signature.ParseResult` carrying the reason (and a logged warning),
 after at most ``1 + max_retries`` attempts each bounded by ``timeout_s``. It never raises for
 server behaviour and never waits without bound.
@@ -35,6 +37,7 @@ import urllib.request
 from dataclasses import dataclass
 
 from conceptfusion.errors import AgentError
+from conceptfusion.strict_json import loads_strict
 from agents.spatial.signature import ParseResult, cannot_parse, parse_signature
 
 __all__ = ["PAPER_PROMPT", "LLMParserConfig", "LLMParser", "build_request_body"]
@@ -265,11 +268,17 @@ def _read_bounded(response, deadline: float, limit: int) -> bytes:
         chunks.append(chunk)
 
 
+class _ReplyError(AgentError):
+    """A reply that is JSON but not one to read: nested too deeply, a key twice, a huge integer."""
+
+
 def _reply_text(payload: bytes) -> str:
     try:
-        data = json.loads(payload.decode("utf-8"))
+        data = loads_strict(payload.decode("utf-8"), source="reply", error=_ReplyError)
     except (UnicodeDecodeError, json.JSONDecodeError) as err:
         raise _AttemptError(f"reply is not JSON ({err.__class__.__name__})", retry=True) from None
+    except _ReplyError as err:
+        raise _AttemptError(f"reply refused: {err}", retry=True) from None
     try:
         choice = data["choices"][0]
         text = choice["message"]["content"] if "message" in choice else choice["text"]

@@ -19,6 +19,7 @@ from pathlib import Path
 
 import numpy as np
 
+from conceptfusion.array_files import check_npz_headers
 from conceptfusion.errors import MapFormatError, MapVersionError, MissingFileError
 from conceptfusion.map.fusion import PointFusionMap
 from conceptfusion.io_utils import atomic_write_bytes
@@ -66,6 +67,8 @@ def load_map(path: str | os.PathLike) -> PointFusionMap:
     is no such file, :class:`~conceptfusion.errors.MapVersionError` for a newer format version,
     and :class:`~conceptfusion.errors.MapFormatError` naming the file and what is wrong for
     anything else: not an ``.npz`` archive (a ``.npy`` array, a text file), truncated or corrupt,
+    an array header that claims more (or fewer) elements than its member holds (checked before
+    anything is allocated: :func:`~conceptfusion.array_files.check_npz_headers`),
     another format, a header field missing, unknown or of the wrong type, arrays of the wrong
     dtype or shape, NaN or infinite values, or feature rows that do not exist.
     """
@@ -83,6 +86,7 @@ def load_map(path: str | os.PathLike) -> PointFusionMap:
         raise MapFormatError(f"{p}: not a readable map file: expected an .npz archive written by save_map, but the "
                              f"file starts with {head!r}" if head else f"{p}: not a readable map file: the file is empty")
     try:
+        check_npz_headers(p, MapFormatError, what="map file")  # before np.load allocates what headers claim
         with np.load(p, allow_pickle=False) as z:
             if "header" not in z.files:
                 raise MapFormatError(f"{p}: expected a '{FORMAT_NAME}' file with a header, found entries {z.files[:8]}")

@@ -52,6 +52,7 @@ from typing import Any, Callable, Mapping
 import cv2
 import numpy as np
 
+from conceptfusion.array_files import check_npz_headers
 from conceptfusion.errors import HarnessError, MissingFileError, ReplayFormatError
 from conceptfusion.io_utils import atomic_write_bytes
 from conceptfusion.map.fusion import PointFusionMap
@@ -170,6 +171,7 @@ def _open(path: str | os.PathLike) -> tuple[Path, Any]:
     if head != b"PK\x03\x04":
         raise ReplayFormatError(f"{p}: not an episode recording: expected an .npz archive (zip), the file starts with {head!r}")
     try:
+        check_npz_headers(p, ReplayFormatError, what="episode recording")  # before np.load allocates
         return p, np.load(p, allow_pickle=False)
     except (zipfile.BadZipFile, OSError, ValueError, EOFError) as exc:
         raise ReplayFormatError(f"{p}: not a readable episode recording (truncated or corrupt archive: {exc})") from None

@@ -35,7 +35,10 @@ from datetime import datetime, timezone
 from pathlib import Path
 
 from conceptfusion.errors import HarnessError, MissingFileError
-from conceptfusion.io_utils import atomic_write_bytes, atomic_write_text
+from conceptfusion.io_utils import (
+    MAX_DOCUMENT_BYTES, MAX_RESULTS_BYTES, atomic_write_bytes, atomic_write_text, check_regular_file, read_file_bytes,
+)
+from conceptfusion.strict_json import loads_strict
 
 __all__ = [
     "RESULTS_FORMAT", "RESULTS_VERSION", "RUN_CONFIG_FORMAT", "RUN_CONFIG_VERSION", "RESULTS_FILE", "RUN_CONFIG_FILE",
@@ -208,6 +211,8 @@ def append_record(path: str | os.PathLike, record: dict) -> None:
         raise TypeError(f"record: expected a dict, got {type(record).__name__}")
     data = (json.dumps(record, allow_nan=False, separators=(",", ":")) + "\n").encode("utf-8")
     p = Path(path)
+    if p.exists():  # opening a FIFO to write would wait for a reader forever
+        check_regular_file(p, "results file", ResultsFormatError, MAX_RESULTS_BYTES)
     p.parent.mkdir(parents=True, exist_ok=True)
     fd = os.open(p, os.O_WRONLY | os.O_APPEND | os.O_CREAT, 0o666)
     try:
@@ -326,8 +331,8 @@ def _scan(data: bytes, where: str) -> tuple[list[dict], int, list[tuple[int, str
             good_end = offset
             continue
         try:
-            rec = json.loads(raw)
-        except (json.JSONDecodeError, UnicodeDecodeError, RecursionError) as exc:
+            rec = loads_strict(raw.decode("utf-8"), source=where, line=i, error=ResultsFormatError)
+        except (json.JSONDecodeError, UnicodeDecodeError) as exc:
             if i == len(body) and not tail.strip():
                 return records, good_end, corrupt, f"{where}: line {i}: skipping a half-written last line ({exc})", numbers
             corrupt.append((i, f"{_describe(raw)}, not a JSON record ({exc})"))
@@ -347,9 +352,7 @@ def _scan(data: bytes, where: str) -> tuple[list[dict], int, list[tuple[int, str
 
 
 def _read(p: Path) -> bytes:
-    if p.is_dir():
-        raise ResultsFormatError(f"{p}: expected a results file, got a folder")
-    return p.read_bytes()
+    return read_file_bytes(p, "results file", ResultsFormatError, MAX_RESULTS_BYTES)
 
 
 def load_results(path: str | os.PathLike, *, strict: bool = False) -> list[dict]:
@@ -362,7 +365,12 @@ def load_results(path: str | os.PathLike, *, strict: bool = False) -> list[dict]
     not a results file and always raises. A line that is JSON but not a valid record always
     raises ``ResultsFormatError`` naming file, line and field: another format or a version newer
     than :data:`RESULTS_VERSION`, a missing or unknown field, a value of the wrong type
-    (``"seed": "abc"``, ``"success": "yes"``), a status not in :data:`STATUSES`, or NaN.
+    (``"seed": "abc"``, ``"success": "yes"``), a status not in :data:`STATUSES`, NaN, a key
+    twice in one object, nesting deeper than :data:`~conceptfusion.strict_json.MAX_JSON_DEPTH`
+    or an integer of more than :data:`~conceptfusion.strict_json.MAX_INT_DIGITS` digits. A path
+    that is not a regular file (a folder, a FIFO, ``/dev/zero`` behind a symlink) or is larger
+    than :data:`~conceptfusion.io_utils.MAX_RESULTS_BYTES` raises ``ResultsFormatError`` before
+    anything is read.
     """
     p = Path(path)
     if not p.exists():
@@ -493,7 +501,7 @@ def load_runs(run_dirs) -> list[dict]:
         results = p / RESULTS_FILE if p.is_dir() else p
         if not p.exists():
             raise MissingFileError(f"{p}: no such run folder or results file")
-        if not results.is_file():
+        if not results.exists():
             raise MissingFileError(f"{p}: no {RESULTS_FILE} here; is it a run folder?")
         records.extend(load_results(results))
         if p.is_dir():
@@ -538,9 +546,12 @@ def read_run_config(run_dir: str | os.PathLike) -> dict:
     if not p.exists():
         raise FileNotFoundError(f"{p}: no run settings here; is {run_dir} a run folder?")
     try:
-        doc = json.loads(p.read_text())
+        doc = loads_strict(read_file_bytes(p, "run settings file", ResultsFormatError, MAX_DOCUMENT_BYTES).decode("utf-8"),
+                           source=str(p), error=ResultsFormatError)
     except json.JSONDecodeError as exc:
         raise ResultsFormatError(f"{p}: corrupt run settings at line {exc.lineno}: {exc.msg}") from exc
+    except UnicodeDecodeError as exc:
+        raise ResultsFormatError(f"{p}: corrupt run settings: not UTF-8 text ({exc})") from None
     if not isinstance(doc, dict) or doc.get("format") != RUN_CONFIG_FORMAT:
         got = doc.get("format") if isinstance(doc, dict) else type(doc).__name__
         raise ResultsFormatError(f"{p}: not run settings: format {got!r}, expected {RUN_CONFIG_FORMAT!r}")

@@ -38,6 +38,7 @@ from urllib.parse import parse_qs, quote, unquote, urlsplit
 from agents.builtin import make_mapper
 from conceptfusion.errors import ConceptFusionError, HarnessError, MapFormatError, MissingFileError
 from conceptfusion.map.persistence import FORMAT_NAME as MAP_FORMAT
+from conceptfusion.strict_json import loads_strict
 from conceptfusion.perception.featurizer import ORACLE_OPEN, encoder_name
 from harness.report.paths import MAP_SUFFIX, VIDEO_SUFFIXES
 from harness.viewer.queries import DEFAULT_MAX_POINTS, MAX_IMAGE_BYTES, BadQueryError, MapQueries
@@ -319,7 +320,9 @@ def _handler(viewer: ViewerServer):
         def _json_body(self) -> dict:
             raw = self._body(_MAX_JSON_BYTES)
             try:
-                obj = json.loads(raw.decode("utf-8"))
+                obj = loads_strict(raw.decode("utf-8"), source="request body", error=BadQueryError)
+            except BadQueryError:
+                raise
             except (UnicodeDecodeError, ValueError):
                 raise BadQueryError(f"expected a JSON object, got {raw[:40]!r}") from None
             if not isinstance(obj, dict):

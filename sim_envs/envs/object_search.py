@@ -28,7 +28,7 @@ from sim_envs.envs.rendering import LastFrameRendering, check_render_mode, frame
 from sim_envs.mujoco.camera import MujocoRGBDCamera
 from sim_envs.mujoco.scene import build_mujoco
 from sim_envs.scenes.descriptions import answer_phrases
-from sim_envs.scenes.episodes import Episode, EpisodeSet, resolve_scene
+from sim_envs.scenes.episodes import Episode, EpisodeSet, resolve_scene, start_outside_message
 from sim_envs.scenes.floorplan import occupancy_grid
 from sim_envs.scenes.graph import object_aabbs, scene_graph
 from sim_envs.scenes.search_episodes import default_search_episodes
@@ -225,6 +225,9 @@ class ObjectSearchEnv(EpisodeLifecycle, LastFrameRendering, gym.Env):
                                    f"are shown one at a time, so each needs a description of 1 to {_MAX_GOAL} characters of "
                                    f"{_GOAL_CHARSET!r}; got {text!r}")
         x, y, yaw = (float(v) for v in episode.start_pose)
+        outside = start_outside_message(self.scene, (x, y))
+        if outside:
+            raise SimError(f"{self.env_name}: episode {episode.episode_id}: {outside}")
         if not self._is_free((x, y)):
             raise SimError(f"{self.env_name}: episode {episode.episode_id}: start pose ({x:.2f}, {y:.2f}) is inside an obstacle")
         self._pose = np.array([x, y, yaw], np.float64)

@@ -9,8 +9,10 @@ A file starts with a header line, then holds one episode per line::
      "goals": [{"object_id": "obj3", "side": "right"}], "start_pose": null, "max_steps": 6}
 
 ``scene`` is a path relative to the ``scenes/`` folder (ending in ``.json``) or a scene id
-(looked up as ``<id>.json`` under ``scenes/``; a ``tabletop-NNNN`` id with no file is generated
-from ``scene_seed``). ``goals`` are ``{object_id, side}`` for rearrangement (side ``left`` or
+(the one file named ``<id>.json`` under ``scenes/``; a ``tabletop-NNNN`` id with no file is
+generated from ``scene_seed``). References are exact: glob characters (``*?[]``), absolute paths
+and paths that leave ``scenes/`` are refused, as is an id that two files answer to
+(:func:`check_scene_ref`). ``goals`` are ``{object_id, side}`` for rearrangement (side ``left`` or
 ``right``) and ``{object_id}`` for object search; ``start_pose`` is the agent's ``[x, y, yaw]``
 for search and ``null`` on a tabletop.
 
@@ -28,6 +30,7 @@ from __future__ import annotations
 
 import json
 import os
+import re
 from dataclasses import dataclass
 from functools import lru_cache
 from pathlib import Path
@@ -36,15 +39,17 @@ import numpy as np
 
 from conceptfusion.errors import MissingFileError, SimError
 from conceptfusion.names import did_you_mean
-from conceptfusion.io_utils import atomic_write_text, read_text_file
+from conceptfusion.io_utils import MAX_EPISODES_BYTES, atomic_write_text, read_text_file
+from conceptfusion.strict_json import loads_strict
 from sim_envs.envs.rearrange_eval import signed_line_distance
 from sim_envs.scenes.descriptions import DESCRIPTION_KINDS
 from sim_envs.scenes.format import Scene, load_scene
+from sim_envs.scenes.household_format import MAX_MAGNITUDE
 from sim_envs.scenes.gen_tabletop import generate_tabletop
 
 __all__ = [
     "EpisodeFormatError", "Goal", "Episode", "EpisodeSet", "FORMAT", "VERSION", "TASKS", "SCENES_ROOT",
-    "MAX_LINE_DISTANCE", "load_episodes", "save_episodes", "episodes_text", "resolve_scene", "tabletop_goals", "tabletop_instruction",
+    "MAX_LINE_DISTANCE", "check_scene_ref", "start_outside_message", "load_episodes", "save_episodes", "episodes_text", "resolve_scene", "tabletop_goals", "tabletop_instruction",
     "generate_tabletop_episodes",
 ]
 
@@ -130,24 +135,71 @@ class EpisodeSet:
 
 # ------------------------------------------------------------------------------------ loading
 def resolve_scene(ref: str, scene_seed: int = 0, *, scenes_root: str | os.PathLike | None = None) -> Scene:
-    """The scene an episode names: a ``.json`` path under ``scenes_root``, a scene id with a file
-    ``<id>.json`` somewhere under it, or a ``tabletop-NNNN`` id generated from ``scene_seed``."""
+    """The scene an episode names, exactly (:func:`check_scene_ref`): a ``.json`` path relative
+    to ``scenes_root``, a scene id whose file ``<id>.json`` is the one file of that name under it,
+    or a ``tabletop-NNNN`` id with no file, generated from ``scene_seed``.
+
+    Raises :class:`~conceptfusion.errors.SimError` for a reference with glob characters, an
+    absolute path or one that leaves the root, or an id that two files answer to, and
+    :class:`~conceptfusion.errors.MissingFileError` when no file matches.
+    """
     root = Path(scenes_root) if scenes_root is not None else SCENES_ROOT
     return _resolve_scene_cached(str(ref), int(scene_seed), str(root.resolve()))
+
+
+_GLOB_CHARS = "*?[]"
+_SCENE_ID = re.compile(r"[A-Za-z0-9][A-Za-z0-9._-]*")
+_GENERATED_ID = re.compile(r"tabletop-[0-9]+")
+
+
+def check_scene_ref(ref: str, scenes_root: str | os.PathLike | None = None) -> Path | None:
+    """The file a scene reference names, checked: ``None`` for a bare scene id (see
+    :func:`resolve_scene`), else the path under ``scenes_root`` (not checked for existence).
+
+    A reference is matched literally: ``"*"`` or ``"household-000[0-9]"`` is not a pattern
+    but a mistake, refused with :class:`~conceptfusion.errors.SimError` naming what a
+    reference looks like, as are absolute paths, backslashes and paths that climb out of the
+    root (``..``, or a symlink that points outside it).
+    """
+    base = Path(scenes_root) if scenes_root is not None else SCENES_ROOT
+    expected = ("expected a path relative to the scenes root ending in .json ('tabletop/tabletop-0042.json') or a "
+                "scene id of letters, digits, '.', '_' and '-' ('tabletop-0042')")
+    bad = sorted({c for c in ref if c in _GLOB_CHARS})
+    if bad:
+        raise SimError(f"scene {ref!r}: {expected}; got glob character(s) {' '.join(bad)} (references are exact, not "
+                       "patterns)")
+    if not ref.endswith(".json"):
+        if not _SCENE_ID.fullmatch(ref):
+            raise SimError(f"scene {ref!r}: {expected}")
+        return None
+    if "\\" in ref or "\0" in ref or ref.startswith(("/", "~")) or ".." in Path(ref).parts or Path(ref).is_absolute():
+        raise SimError(f"scene {ref!r}: {expected}; got an absolute path, a backslash or '..'")
+    path = base / ref
+    root = base.resolve()
+    if not path.resolve().is_relative_to(root):
+        raise SimError(f"scene {ref!r}: {expected}; the path leads to {path.resolve()}, outside the scenes root {root}")
+    return path
 
 
 @lru_cache(maxsize=256)
 def _resolve_scene_cached(ref: str, scene_seed: int, root: str) -> Scene:
     base = Path(root)
-    if ref.endswith(".json"):
-        path = base / ref
-        if not path.is_file():
+    path = check_scene_ref(ref, base)
+    if path is not None:
+        if not path.exists():
             raise MissingFileError(f"scene file {path} does not exist (scene {ref!r}, relative to {base})")
         return load_scene(path)
-    found = sorted(base.rglob(f"{ref}.json")) if base.is_dir() else []
+    name = f"{ref}.json"
+    found = sorted(Path(folder) / name for folder, _, files in os.walk(base) if name in files) if base.is_dir() else []
+    if len(found) > 1:
+        listed = ", ".join(str(f.relative_to(base)) for f in found)
+        raise SimError(f"scene {ref!r}: {len(found)} files are named {name} under {base} ({listed}); expected one: name the "
+                       "file by its path relative to the scenes root")
     if found:
+        if not found[0].resolve().is_relative_to(base):
+            raise SimError(f"scene {ref!r}: {found[0]} leads to {found[0].resolve()}, outside the scenes root {base}")
         return load_scene(found[0])
-    if ref.startswith("tabletop-"):
+    if _GENERATED_ID.fullmatch(ref):
         return generate_tabletop(scene_seed)
     raise MissingFileError(f"scene {ref!r}: no file {ref}.json under {base}, and only tabletop-NNNN ids can be generated")
 
@@ -210,6 +262,9 @@ def _parse_episode(d, task: str, where: str) -> Episode:
             isinstance(v, (int, float)) and not isinstance(v, bool) and np.isfinite(v) for v in pose
         ):
             raise EpisodeFormatError(f"{where}: 'start_pose' expected null or [x, y, yaw] (3 finite numbers), got {pose!r}")
+        if any(abs(v) > MAX_MAGNITUDE for v in pose):
+            raise EpisodeFormatError(f"{where}: 'start_pose' expected [x, y, yaw] within +-{MAX_MAGNITUDE:g} (metres, "
+                                     f"radians), got {pose!r}")
         pose = tuple(float(v) for v in pose)
     max_steps = _field(d, "max_steps", int, where)
     if max_steps < 1:
@@ -233,7 +288,7 @@ def _parse_episode(d, task: str, where: str) -> Episode:
 
 
 def _read_lines(p: Path) -> list[str]:
-    return read_text_file(p, "episode file", EpisodeFormatError).splitlines()
+    return read_text_file(p, "episode file", EpisodeFormatError, max_bytes=MAX_EPISODES_BYTES).splitlines()
 
 
 def _parse_header(header, where: str) -> tuple[str, int | None]:
@@ -259,11 +314,17 @@ def load_episodes(
     """Read and validate an episode file.
 
     Raises :class:`EpisodeFormatError` naming the file, the 1-based line number and the field
-    for a file that is not UTF-8 text, a line that is not JSON (NaN and infinities included) or
-    not a valid record (a missing or unknown field, a value of the wrong type or range), a bad
-    header, or a duplicate episode id; with ``check_scenes`` every scene is resolved
-    (:func:`resolve_scene`; a missing or invalid scene is an :class:`EpisodeFormatError` naming
-    the line) and every goal object id must exist in it. A missing file raises
+    for a path that is not a regular file or is larger than
+    :data:`~conceptfusion.io_utils.MAX_EPISODES_BYTES`, a file that is not UTF-8 text, a line
+    that is not JSON (NaN and infinities included; a key twice in one object, nesting deeper
+    than :data:`~conceptfusion.strict_json.MAX_JSON_DEPTH` or an integer of more than
+    :data:`~conceptfusion.strict_json.MAX_INT_DIGITS` digits) or not a valid record (a missing or
+    unknown field, a value of the wrong type or range, a start pose beyond
+    :data:`~sim_envs.scenes.household_format.MAX_MAGNITUDE`), a bad header, or a duplicate
+    episode id; with ``check_scenes`` every scene is resolved (:func:`resolve_scene`, exact
+    references only; a missing or invalid scene is an :class:`EpisodeFormatError` naming the
+    line), every goal object id must exist in it and a start pose must lie within the
+    apartment's bounds (:func:`start_outside_message`). A missing file raises
     :class:`~conceptfusion.errors.MissingFileError`.
     """
     p = Path(path)
@@ -272,11 +333,9 @@ def load_episodes(
         if not line.strip():
             continue
         try:
-            records.append((no, json.loads(line, parse_constant=_refuse_constant)))
+            records.append((no, loads_strict(line, source=str(p), line=no, error=EpisodeFormatError, allow_nan=False)))
         except json.JSONDecodeError as exc:
             raise EpisodeFormatError(f"{p}:line {no}: not valid JSON ({exc.msg} at column {exc.colno})") from exc
-        except (ValueError, RecursionError) as exc:
-            raise EpisodeFormatError(f"{p}:line {no}: not valid JSON ({exc})") from None
     if not records:
         raise EpisodeFormatError(f"{p}: expected a header line, got an empty file")
     no, header = records[0]
@@ -293,6 +352,7 @@ def load_episodes(
                 scene = resolve_scene(ep.scene, ep.scene_seed, scenes_root=scenes_root)
             except (OSError, ValueError) as exc:
                 raise EpisodeFormatError(f"{where}: episode {ep.episode_id!r}: field 'scene': {exc}") from exc
+            _check_start_inside(ep, scene, where)
             ids = [o.id for o in scene.objects]
             for g in ep.goals:
                 if g.object_id not in ids:
@@ -303,8 +363,27 @@ def load_episodes(
     return EpisodeSet(task, seed, tuple(episodes))
 
 
-def _refuse_constant(name: str):
-    raise ValueError(f"{name} is not a number JSON allows")
+def start_outside_message(scene: Scene, xy) -> str | None:
+    """Why start position ``xy`` cannot be in household ``scene``: outside the bounding box of
+    its rooms' floors (the apartment's bounds, named in the message); None when it is inside
+    them or the scene has no rooms."""
+    bounds = scene.floor_bounds()
+    if bounds is None:
+        return None
+    (x0, y0), (x1, y1) = bounds
+    x, y = float(xy[0]), float(xy[1])
+    if x0 <= x <= x1 and y0 <= y <= y1:
+        return None
+    return (f"start pose ({x:.2f}, {y:.2f}) is outside the apartment's bounds x in [{x0:.2f}, {x1:.2f}], "
+            f"y in [{y0:.2f}, {y1:.2f}] (scene {scene.id!r})")
+
+
+def _check_start_inside(ep: Episode, scene: Scene, where: str) -> None:
+    if ep.start_pose is None:
+        return
+    why = start_outside_message(scene, ep.start_pose[:2])
+    if why:
+        raise EpisodeFormatError(f"{where}: episode {ep.episode_id!r}: field 'start_pose': {why}")
 
 
 def episodes_text(episodes: EpisodeSet) -> str:

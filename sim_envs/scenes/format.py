@@ -20,7 +20,8 @@ Loading validates everything, field by field, and raises
 :class:`~conceptfusion.errors.SceneFormatError` (a ``ValueError``) naming the file and the field:
 a file that is not UTF-8 or malformed JSON, another format or a newer version, a field of the
 wrong type (a number where a string is expected is refused, not converted), a NaN or infinite
-number, a non-positive size, an unknown asset, colour, material or furniture kind, a duplicate
+number, a number of magnitude above :data:`~sim_envs.scenes.household_format.MAX_MAGNITUDE`
+(10 km: no scene spans more), a non-positive size, an unknown asset, colour, material or furniture kind, a duplicate
 id, two objects on the same support whose footprints overlap, a missing support, an object
 whose base is not on its support's surface (within 1 cm), or, in a scene with a table, an
 object without a support whose centre is off the table top or whose base is not on it (1 cm).
@@ -36,7 +37,8 @@ from pathlib import Path
 
 import numpy as np
 
-from conceptfusion.io_utils import atomic_write_text, read_text_file
+from conceptfusion.io_utils import MAX_SCENE_BYTES, atomic_write_text, read_text_file
+from conceptfusion.strict_json import loads_strict
 from sim_envs.assets.objects import ALL_ASSETS, COLORS
 from sim_envs.assets.library.catalogue import is_library_asset, scene_instance
 from conceptfusion.errors import SceneFormatError
@@ -44,6 +46,7 @@ from sim_envs.scenes.household_format import (
     Furniture, Room, Wall, check_fields, check_supports, parse_furniture, parse_list, parse_material, parse_number, parse_phrases, parse_rooms,
     parse_text, parse_vector, parse_walls,
 )
+from sim_envs.scenes.overlaps import overlapping_pairs
 
 __all__ = ["SceneObject", "Table", "Scene", "Room", "Wall", "Furniture", "load_scene", "save_scene", "scene_from_json", "FORMAT", "VERSION"]
 
@@ -114,6 +117,14 @@ class Scene:
             if f.id == furniture_id:
                 return f
         raise KeyError(f"scene {self.id}: no furniture {furniture_id!r}; furniture is {[f.id for f in self.furniture]}")
+
+    def floor_bounds(self) -> tuple[tuple[float, float], tuple[float, float]] | None:
+        """The apartment's bounds: lower and upper xy corners of the box around every room's
+        floor (None: a scene without rooms)."""
+        if not self.rooms:
+            return None
+        lows, highs = [r.floor[0] for r in self.rooms], [r.floor[1] for r in self.rooms]
+        return ((min(p[0] for p in lows), min(p[1] for p in lows)), (max(p[0] for p in highs), max(p[1] for p in highs)))
 
     def room_at(self, xy) -> Room | None:
         """The room whose floor contains world point ``xy`` (None: outside every room)."""
@@ -272,14 +283,12 @@ def scene_from_json(d: dict, *, source: str = "scene", overlap_tol: float = 0.00
     check_supports(objects, furniture, source, tol=support_tol)
     if table is not None:
         _check_on_table(objects, table, source, support_tol)
-    for a_i, a in enumerate(objects):  # footprints of objects on the same support and level must not overlap
-        la, ha = a.footprint()
-        for b in objects[a_i + 1 :]:
-            lb, hb = b.footprint()
-            same_level = a.support == b.support and abs(a.position[2] - b.position[2]) < 0.05
-            if same_level and np.all(np.minimum(ha, hb) - np.maximum(la, lb) > overlap_tol):
-                where = f" on {a.support!r}" if a.support else ""
-                raise SceneFormatError(f"{source}: objects {a.id!r} ({a.name}) and {b.id!r} ({b.name}) overlap{where}")
+    pairs = overlapping_pairs(objects, overlap_tol)  # objects on the same support and level must not overlap
+    if pairs:
+        a, b = objects[pairs[0][0]], objects[pairs[0][1]]
+        where = f" on {a.support!r}" if a.support else ""
+        more = f" ({len(pairs) - 1} more overlapping pair(s))" if len(pairs) > 1 else ""
+        raise SceneFormatError(f"{source}: objects {a.id!r} ({a.name}) and {b.id!r} ({b.name}) overlap{where}{more}")
     return Scene(scene_id, kind, seed, table, tuple(objects), line, extras, rooms, walls, furniture)
 
 
@@ -288,13 +297,17 @@ def load_scene(path: str | os.PathLike) -> Scene:
 
     Raises :class:`~conceptfusion.errors.MissingFileError` (a ``FileNotFoundError``) when there
     is no such file, and :class:`~conceptfusion.errors.SceneFormatError` (a ``ValueError``)
-    naming the file, and the line or field, for a file that is not UTF-8 JSON text or not a
-    valid scene (see :func:`scene_from_json`).
+    naming the file, and the line or field, for a path that is not a regular file (a folder, a
+    FIFO, a device; symlinks are followed) or is larger than
+    :data:`~conceptfusion.io_utils.MAX_SCENE_BYTES`, a file that is not UTF-8 JSON text, JSON
+    with a key twice in one object, nested too deeply or with a huge integer
+    (:func:`~conceptfusion.strict_json.loads_strict`), or not a valid scene (see
+    :func:`scene_from_json`).
     """
     p = Path(path)
-    text = read_text_file(p, "scene file", SceneFormatError)
+    text = read_text_file(p, "scene file", SceneFormatError, max_bytes=MAX_SCENE_BYTES)
     try:
-        doc = json.loads(text)
+        doc = loads_strict(text, source=str(p), error=SceneFormatError)
     except json.JSONDecodeError as exc:
         raise SceneFormatError(f"{p}: malformed JSON at line {exc.lineno}: {exc.msg}") from exc
     except RecursionError:

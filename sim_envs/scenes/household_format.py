@@ -34,10 +34,15 @@ from sim_envs.assets.library.export import instance_parts
 
 __all__ = [
     "parse_vector", "parse_number", "parse_text", "parse_list", "parse_phrases", "parse_material",
-    "check_fields",
+    "check_fields", "MAX_MAGNITUDE",
     "Room", "Wall", "Furniture", "CONTAINER_FLOOR", "parse_rooms", "parse_walls", "parse_furniture",
     "check_supports", "support_surface_z", "LIBRARY_CONTAINERS", "container_floor",
 ]
+
+MAX_MAGNITUDE = 1.0e4
+"""Largest absolute value of any number in a scene (coordinates, sizes, yaws, door offsets):
+10 km in metres. No scene spans more; ``1e300`` is a corrupt file, and arithmetic on it
+overflows (footprints, occupancy grids) far from where the number was read."""
 
 CONTAINER_FLOOR: dict[str, float] = {"bowl": 0.01}
 """Object assets that are open containers: height of the inner floor above the base (metres)."""
@@ -182,7 +187,8 @@ def _is_number(x) -> bool:
 
 
 def parse_vector(name: str, value, n: int) -> tuple[float, ...]:
-    """``value`` as ``n`` finite floats; :class:`SceneFormatError` naming the field ``name`` otherwise.
+    """``value`` as ``n`` finite floats of magnitude at most :data:`MAX_MAGNITUDE`;
+    :class:`SceneFormatError` naming the field ``name`` otherwise.
 
     Only a JSON list of numbers is accepted: a string, a bool or a number in quotes is refused
     rather than converted.
@@ -192,13 +198,18 @@ def parse_vector(name: str, value, n: int) -> tuple[float, ...]:
     v = tuple(float(x) for x in value)
     if len(v) != n or not all(math.isfinite(x) for x in v):
         raise SceneFormatError(f"{name}: expected {n} finite numbers, got {value!r}")
+    if any(abs(x) > MAX_MAGNITUDE for x in v):
+        raise SceneFormatError(f"{name}: expected {n} numbers within +-{MAX_MAGNITUDE:g} (metres), got {list(v)!r}")
     return v
 
 
 def parse_number(name: str, value, *, positive: bool = False) -> float:
-    """``value`` as one finite float (``positive``: also > 0); :class:`SceneFormatError` naming ``name``."""
+    """``value`` as one finite float of magnitude at most :data:`MAX_MAGNITUDE` (``positive``: also
+    > 0); :class:`SceneFormatError` naming ``name``."""
     if not _is_number(value) or not math.isfinite(value):
         raise SceneFormatError(f"{name}: expected a finite number, got {value!r}")
+    if abs(value) > MAX_MAGNITUDE:
+        raise SceneFormatError(f"{name}: expected a number within +-{MAX_MAGNITUDE:g}, got {value!r}")
     if positive and not value > 0:
         raise SceneFormatError(f"{name}: expected a positive number, got {value!r}")
     return float(value)

@@ -25,8 +25,9 @@ from pathlib import Path
 from typing import Iterable, Mapping
 
 from conceptfusion.errors import SimError
-from conceptfusion.io_utils import read_json_document
-from sim_envs.scenes.episodes import SCENES_ROOT, Episode, load_episodes
+from conceptfusion.io_utils import MAX_EPISODES_BYTES, MAX_SCENE_BYTES, read_json_document, read_text_file
+from conceptfusion.strict_json import loads_strict
+from sim_envs.scenes.episodes import SCENES_ROOT, Episode, check_scene_ref, load_episodes
 from sim_envs.scenes.splits import splits
 
 __all__ = ["SEALED_FOLDER_NAME", "SEALED_FOLDER", "MANIFEST_NAME", "SEALED_SEED_ROLE", "SealedSetError", "manifest_text", "is_sealed_file",
@@ -163,7 +164,8 @@ def verify_sealed(episode_file, scenes=()) -> None:
     if lines is None:
         raise SealedSetError(f"{path}: not an episode file of the sealed set's manifest")
     seen = set()
-    for no, line in enumerate(path.read_text().splitlines(), start=1):
+    text = read_text_file(path, "episode file", SealedSetError, max_bytes=MAX_EPISODES_BYTES)
+    for no, line in enumerate(text.splitlines(), start=1):
         if not line.strip():
             continue
         where = f"{path}:line {no}"
@@ -171,7 +173,7 @@ def verify_sealed(episode_file, scenes=()) -> None:
         if want is None:
             raise SealedSetError(f"{where}: a line the manifest does not record")
         try:
-            obj = json.loads(line)
+            obj = loads_strict(line, source=str(path), line=no, error=SealedSetError)
         except json.JSONDecodeError as exc:
             raise SealedSetError(f"{where}: not valid JSON ({exc.msg})") from None
         _compare(where, want, obj)
@@ -184,7 +186,9 @@ def verify_sealed(episode_file, scenes=()) -> None:
         if want is None:
             raise SealedSetError(f"{SCENES_ROOT / scene}: not a scene file of the sealed set's manifest")
         try:
-            obj = json.loads((SCENES_ROOT / scene).read_text())
+            check_scene_ref(scene)
+            text = read_text_file(SCENES_ROOT / scene, "scene file", SealedSetError, max_bytes=MAX_SCENE_BYTES)
+            obj = loads_strict(text, source=str(SCENES_ROOT / scene), error=SealedSetError)
         except (OSError, UnicodeDecodeError, json.JSONDecodeError) as exc:
             raise SealedSetError(f"{SCENES_ROOT / scene}: cannot be read as JSON ({exc})") from None
         _compare(str(SCENES_ROOT / scene), want, obj)

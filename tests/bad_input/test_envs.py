@@ -12,7 +12,7 @@ from conceptfusion.errors import EnvStateError, MissingFileError, SimError, SimT
 from sim_envs.envs.object_search import ObjectSearchEnv
 from sim_envs.envs.scene_scan import SceneScanEnv
 from sim_envs.envs.tabletop_rearrange import TabletopRearrangeEnv
-from sim_envs.scenes.episodes import SCENES_ROOT, EpisodeSet, Goal, load_episodes
+from sim_envs.scenes.episodes import SCENES_ROOT, EpisodeSet, Goal, load_episodes, resolve_scene
 from sim_envs.scenes.search_episodes import default_search_episodes
 
 W, H = 32, 24
@@ -157,10 +157,17 @@ def test_search_step_after_close_and_reset_after_close(search_episodes):
 def test_search_failed_reset_refuses_steps(search_env, search_episodes):
     search_env.reset(seed=0)
     bad = dataclasses.replace(search_episodes[0], start_pose=(-100.0, -100.0, 0.0))
-    with pytest.raises(SimError, match=r"start pose \(-100.00, -100.00\) is inside an obstacle"):
+    with pytest.raises(SimError, match=r"start pose \(-100.00, -100.00\) is outside the apartment's bounds x in \[-?\d"):
         search_env.reset(options={"episode": bad})
     with pytest.raises(EnvStateError, match=r"step\(\) before a successful reset\(\)"):
         search_env.step(np.zeros(3))
+
+
+def test_search_start_on_furniture_is_inside_an_obstacle(search_env, search_episodes):
+    piece = resolve_scene(search_episodes[0].scene, search_episodes[0].scene_seed).furniture[0]
+    bad = dataclasses.replace(search_episodes[0], start_pose=(piece.position[0], piece.position[1], 0.0))
+    with pytest.raises(SimError, match=r"start pose \(.*\) is inside an obstacle"):
+        search_env.reset(options={"episode": bad})
 
 
 # --------------------------------------------------------------------------- reset seeds and options

@@ -102,7 +102,7 @@ def test_truncation_clipping_and_bad_actions(episodes):
     _, _, term, trunc, _ = e.step(np.zeros(3, np.float32))
     assert trunc and not term
     bad = Episode("x", episodes[1].scene, 0, "the thing", (Goal(episodes[1].goals[0].object_id),), (-100.0, -100.0, 0.0), 10)
-    with pytest.raises(ValueError, match="inside an obstacle"):
+    with pytest.raises(ValueError, match="outside the apartment's bounds"):
         e.reset(options={"episode": bad})
     e.close()
 
