@@ -27,7 +27,7 @@ from pathlib import Path
 from conceptfusion.errors import MissingFileError
 
 __all__ = [
-    "atomic_write_bytes", "atomic_write_text", "read_text_file", "read_json_document", "read_file_bytes",
+    "atomic_write_bytes", "atomic_write_text", "read_text_file", "read_json_file", "read_json_document", "read_file_bytes",
     "check_regular_file", "MAX_SCENE_BYTES", "MAX_EPISODES_BYTES", "MAX_RESULTS_BYTES", "MAX_DOCUMENT_BYTES",
 ]
 
@@ -163,6 +163,16 @@ def read_text_file(path: str | os.PathLike, what: str, error: type[Exception], *
                     f"(byte 0x{data[exc.start]:02x} at offset {exc.start})") from None
 
 
+def read_json_file(path: str | os.PathLike, what: str, error: type[Exception], *, max_bytes: int = MAX_DOCUMENT_BYTES):
+    """The JSON value in the file at ``path`` (:func:`read_text_file`, then
+    :func:`conceptfusion.strict_json.loads_strict`: duplicate keys, too deep nesting and huge
+    integers refused with ``error``, naming the file). Text that is not JSON raises
+    ``json.JSONDecodeError`` as ``json.loads`` does, for the caller to word."""
+    from conceptfusion.strict_json import loads_strict
+
+    return loads_strict(read_text_file(path, what, error, max_bytes=max_bytes), source=str(path), error=error)
+
+
 def read_json_document(path: str | os.PathLike, *, fmt: str, version: int, what: str, missing: str,
                        error: type[Exception], max_bytes: int = MAX_DOCUMENT_BYTES) -> dict:
     """The JSON object in the file at ``path``, whose ``format`` must be ``fmt`` and ``version``
@@ -177,14 +187,12 @@ def read_json_document(path: str | os.PathLike, *, fmt: str, version: int, what:
     """
     import json
 
-    from conceptfusion.strict_json import loads_strict
-
     p = Path(path)
     try:
-        data = loads_strict(read_file_bytes(p, what, error, max_bytes).decode("utf-8"), source=str(p), error=error)
+        data = read_json_file(p, what, error, max_bytes=max_bytes)
     except FileNotFoundError:
         raise error(f"{p}: {missing}") from None
-    except (UnicodeDecodeError, json.JSONDecodeError) as exc:
+    except json.JSONDecodeError as exc:
         raise error(f"{p}: not a JSON {what} ({exc})") from None
     if not isinstance(data, dict) or data.get("format") != fmt or data.get("version") != version:
         raise error(f"{p}: expected format {fmt!r} version {version}")

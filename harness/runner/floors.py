@@ -88,8 +88,7 @@ from pathlib import Path
 from scipy import stats
 
 from conceptfusion.errors import HarnessError
-from conceptfusion.io_utils import MAX_DOCUMENT_BYTES, atomic_write_text, read_file_bytes
-from conceptfusion.strict_json import loads_strict
+from conceptfusion.io_utils import atomic_write_text, read_json_file
 from conceptfusion.names import unknown_name_error
 from harness.report.stats import metric_value
 from harness.runner.results import latest_records, load_results
@@ -439,8 +438,7 @@ def _claim_work_dir(work: Path, suites: list[Suite]) -> None:
     """Record the suites' settings in ``work/calibration.json``; refuse to resume a calibration
     whose settings differ (its records, keyed without the environment size, would be reused)."""
     path = work / "calibration.json"
-    stored = loads_strict(read_file_bytes(path, "calibration settings file", HarnessError, MAX_DOCUMENT_BYTES).decode("utf-8"),
-                          source=str(path), error=HarnessError) if path.exists() else {}
+    stored = read_json_file(path, "calibration settings file", HarnessError) if path.exists() else {}
     changed = [s.name for s in suites if s.name in stored and stored[s.name] != _settings(s)]
     if changed:
         raise HarnessError(f"{work}: the calibration there ran {', '.join(changed)} with other settings "
@@ -528,8 +526,7 @@ def check(folder: Path = RECORDS_DIR, floors_file: Path = FLOORS_FILE) -> list[s
     if not Path(floors_file).is_file():
         return [f"{floors_file}: missing; run python -m harness.runner.floors --calibrate"]
     try:
-        got = loads_strict(read_file_bytes(floors_file, "floors file", HarnessError, MAX_DOCUMENT_BYTES).decode("utf-8"),
-                           source=str(floors_file), error=HarnessError)
+        got = read_json_file(floors_file, "floors file", HarnessError)
     except ValueError as exc:
         return [f"{floors_file}: not JSON ({exc})"]
     return _diff(want, got)

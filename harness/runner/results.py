@@ -36,7 +36,7 @@ from pathlib import Path
 
 from conceptfusion.errors import HarnessError, MissingFileError
 from conceptfusion.io_utils import (
-    MAX_DOCUMENT_BYTES, MAX_RESULTS_BYTES, atomic_write_bytes, atomic_write_text, check_regular_file, read_file_bytes,
+    MAX_RESULTS_BYTES, atomic_write_bytes, atomic_write_text, check_regular_file, read_file_bytes, read_json_file,
 )
 from conceptfusion.strict_json import loads_strict
 
@@ -546,12 +546,9 @@ def read_run_config(run_dir: str | os.PathLike) -> dict:
     if not p.exists():
         raise FileNotFoundError(f"{p}: no run settings here; is {run_dir} a run folder?")
     try:
-        doc = loads_strict(read_file_bytes(p, "run settings file", ResultsFormatError, MAX_DOCUMENT_BYTES).decode("utf-8"),
-                           source=str(p), error=ResultsFormatError)
+        doc = read_json_file(p, "run settings file", ResultsFormatError)
     except json.JSONDecodeError as exc:
         raise ResultsFormatError(f"{p}: corrupt run settings at line {exc.lineno}: {exc.msg}") from exc
-    except UnicodeDecodeError as exc:
-        raise ResultsFormatError(f"{p}: corrupt run settings: not UTF-8 text ({exc})") from None
     if not isinstance(doc, dict) or doc.get("format") != RUN_CONFIG_FORMAT:
         got = doc.get("format") if isinstance(doc, dict) else type(doc).__name__
         raise ResultsFormatError(f"{p}: not run settings: format {got!r}, expected {RUN_CONFIG_FORMAT!r}")

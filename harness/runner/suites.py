@@ -59,8 +59,7 @@ from dataclasses import dataclass, field
 from pathlib import Path
 
 from conceptfusion.errors import HarnessError
-from conceptfusion.io_utils import MAX_DOCUMENT_BYTES, read_file_bytes
-from conceptfusion.strict_json import loads_strict
+from conceptfusion.io_utils import read_json_file
 from conceptfusion.names import lookup
 from sim_envs.scenes.episodes import SCENES_ROOT, Episode, load_episodes
 from sim_envs.scenes.chain_episodes import check_chains_reachable
@@ -87,8 +86,7 @@ def calibrated_bounds(name: str, path: Path = FLOORS_FILE) -> dict:
     if not path.is_file():
         return {}
     try:
-        text = read_file_bytes(path, "floors file", HarnessError, MAX_DOCUMENT_BYTES).decode("utf-8")
-        agents = loads_strict(text, source=str(path), error=HarnessError)["suites"].get(name, {}).get("agents", {})
+        agents = read_json_file(path, "floors file", HarnessError)["suites"].get(name, {}).get("agents", {})
         floors = {a: float(b["value"]) for a, b in agents.items() if b["bound"] == "floor"}
         ceilings = {a: float(b["value"]) for a, b in agents.items() if b["bound"] == "ceiling"}
         limits = {a: int(b["episodes"]) for a, b in agents.items()}
