@@ -62,8 +62,8 @@ def cmd_run(args: argparse.Namespace) -> int:
         config = RunConfig(
             suites=suites, agents=tuple(args.agent) if args.agent else None, encoder=args.encoder,
             agent_kwargs=parse_agent_options(args.agent_option), limit=args.limit, seed=args.seed, seeds=args.seeds, backend=args.backend,
-            workers=args.workers, address=args.address, timeout_s=args.timeout, plugins=tuple(args.plugin or ()),
-            record=args.record,
+            workers=args.workers, address=args.address, timeout_s=args.timeout, memory_limit_mb=args.memory_limit_mb,
+            plugins=tuple(args.plugin or ()), record=args.record,
         )
         floor_as = _parse_floor_as(args.floor_as, config)
         plan = plan_run(config, args.out, resume=args.resume)
@@ -349,12 +349,16 @@ def add_eval_commands(sub) -> None:
                      "SEED, SEED+1, ..., SEED+N-1, and the report gives the between-seed spread (default 1)")
     run.add_argument("--backend", default="process", metavar="{" + ",".join(BACKENDS) + "}",
                      help="where episodes run (default: process pool; serial runs in this process, where an agent "
-                     "calling os._exit or crashing in native code ends the run)")
+                     "calling os._exit or crashing in native code ends the run, and one whose call never returns "
+                     "hangs it)")
     run.add_argument("--workers", metavar="N", help="worker processes / Ray CPUs >= 1 (default: CPU count)")
     run.add_argument("--address", help="Ray cluster address for --backend ray: auto, HOST:PORT or ray://HOST:PORT "
                      "(default: start a local instance)")
     run.add_argument("--timeout", metavar="SECONDS", help="seconds > 0 per episode before it is recorded as timeout "
                      "(default: the suite's, 600)")
+    run.add_argument("--memory-limit-mb", metavar="N", help="MiB of memory each episode's worker may allocate beyond what "
+                     "it started with; past it the episode is recorded failed and the worker replaced (process backend "
+                     "only; default: no limit)")
     run.add_argument("--out", default="runs/main", help="run folder (default: runs/main)")
     run.add_argument("--resume", action="store_true", help="finish an interrupted run in --out")
     run.add_argument("--no-report", action="store_true", help="skip writing the report")
