@@ -68,7 +68,8 @@ def _run_config(args: argparse.Namespace):
     from harness.runner.run import RunConfig
     from harness.runner.suites import DEFAULT_SUITES
 
-    common = dict(backend=args.backend, workers=args.workers, address=args.address, timeout_s=args.timeout, record=args.record)
+    common = dict(backend=args.backend, workers=args.workers, address=args.address, timeout_s=args.timeout,
+                  memory_limit_mb=args.memory_limit_mb, record=args.record)
     if args.resume and all(getattr(args, name) is None for name in _SETTINGS_FLAGS):
         from harness.runner.folder import check_run_folder
 
@@ -451,12 +452,16 @@ def add_eval_commands(sub) -> None:
                      "SEED, SEED+1, ..., SEED+N-1, and the report gives the between-seed spread (default 1)")
     run.add_argument("--backend", default="process", metavar="{" + ",".join(BACKENDS) + "}",
                      help="where episodes run (default: process pool; serial runs in this process, where an agent "
-                     "calling os._exit or crashing in native code ends the run)")
+                     "calling os._exit or crashing in native code ends the run, and one whose call never returns "
+                     "hangs it)")
     run.add_argument("--workers", metavar="N", help="worker processes / Ray CPUs >= 1 (default: CPU count)")
     run.add_argument("--address", help="Ray cluster address for --backend ray: auto, HOST:PORT or ray://HOST:PORT "
                      "(default: start a local instance)")
     run.add_argument("--timeout", metavar="SECONDS", help="seconds > 0 per episode before it is recorded as timeout "
                      "(default: the suite's, 600)")
+    run.add_argument("--memory-limit-mb", metavar="N", help="MiB of memory each episode's worker may allocate beyond what "
+                     "it started with; past it the episode is recorded failed and the worker replaced (process backend "
+                     "only; default: no limit)")
     run.add_argument("--out", default="runs/main", help="run folder (default: runs/main)")
     run.add_argument("--resume", action="store_true", help="finish an interrupted run in --out (with no settings flags: "
                      "the settings stored in its run.json)")

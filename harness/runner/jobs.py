@@ -15,14 +15,15 @@ from __future__ import annotations
 import contextlib
 import importlib
 import os
+import threading
 import time
 from typing import Iterable, Iterator, Protocol, runtime_checkable
 
 from conceptfusion.perception.encoders import THREADS_ENV
 from harness.runner.results import make_record
 
-__all__ = ["Job", "JobTimeout", "job_record", "import_plugins", "WORKER_THREADS_ENV", "worker_thread_share",
-           "run_job", "one_blas_thread", "expected_seconds", "longest_first"]
+__all__ = ["Job", "JobTimeout", "job_deadline", "check_deadline", "note_interrupt", "job_record", "import_plugins",
+           "WORKER_THREADS_ENV", "worker_thread_share", "run_job", "one_blas_thread", "expected_seconds", "longest_first"]
 
 WORKER_THREADS_ENV = THREADS_ENV
 """Set by the process backend in each worker: that worker's share of the CPU cores (encoders
@@ -30,10 +31,56 @@ size their onnxruntime thread pools by it)."""
 
 
 class JobTimeout(BaseException):
-    """Raised inside a job that runs past its ``timeout_s`` on the serial backend (from a
-    ``SIGALRM`` handler). A ``BaseException``, like ``KeyboardInterrupt``: a job's
-    ``except Exception`` does not turn it into a ``failed`` record; the backend records
-    ``timeout``. Jobs clean up (close environments) and let it through."""
+    """Raised inside a job that runs past its ``timeout_s`` on the serial backend: from a
+    ``SIGALRM`` handler, and by :func:`check_deadline` when the agent's code returns past the
+    deadline. A ``BaseException``, like ``KeyboardInterrupt``: a job's ``except Exception`` does
+    not turn it into a ``failed`` record; the backend records ``timeout`` with the exception's
+    text, which says how the job was stopped. Jobs clean up (close environments) and let it
+    through."""
+
+
+class _Deadline(threading.local):
+    """Per thread: when its in-process job must end (None: no deadline) and how many timeout
+    interrupts were raised into it."""
+
+    at: float | None = None
+    interrupts: int = 0
+
+
+_DEADLINE = _Deadline()
+"""The deadline of the job this thread runs in-process (serial backend), or None."""
+
+
+@contextlib.contextmanager
+def job_deadline(timeout_s: float) -> Iterator[None]:
+    """Run the block (one job, in this thread) with a deadline ``timeout_s`` seconds from now,
+    which :func:`check_deadline` enforces. The serial backend sets it; in a pool worker there is
+    none (the pool kills the worker instead)."""
+    _DEADLINE.at, _DEADLINE.interrupts = time.monotonic() + float(timeout_s), 0
+    try:
+        yield
+    finally:
+        _DEADLINE.at = None
+
+
+def note_interrupt() -> int:
+    """Count one timeout interrupt (``SIGALRM``) raised into the running job; the count so far."""
+    _DEADLINE.interrupts += 1
+    return _DEADLINE.interrupts
+
+
+def check_deadline(event: str) -> None:
+    """Raise :class:`JobTimeout` when this thread's job (:func:`job_deadline`) is past its
+    deadline; nothing without one. Called by the episode runner each time the agent's code
+    returns to it (``event`` says what happened: ``"agent.act returned"``), so that an agent
+    which catches the timeout interrupt (a bare ``except``) is still stopped at its next
+    return: this raise happens in the harness's code, out of the agent's reach."""
+    at = _DEADLINE.at
+    if at is None or time.monotonic() <= at:
+        return
+    n = _DEADLINE.interrupts
+    caught = f"the job caught the SIGALRM interrupt {'once' if n == 1 else f'{n} times'}; " if n else ""
+    raise JobTimeout(f"{caught}stopped on the serial backend when {event}, past its deadline")
 
 
 @runtime_checkable

@@ -86,6 +86,12 @@ class RunConfig:
     """Ray cluster address (``--address``; only with ``backend="ray"``)."""
     timeout_s: float | None = None
     """Seconds > 0 per episode before it is recorded as ``timeout`` (``--timeout``; None: the suite's)."""
+    memory_limit_mb: int | None = None
+    """MiB >= 1 of memory each episode's worker may allocate beyond what it started with
+    (``--memory-limit-mb``; None: no limit); past it the episode is recorded ``failed`` ("memory limit of N MiB exceeded") and
+    its worker replaced. Only with ``backend="process"`` (see
+    :mod:`harness.runner.process_pool`, which says how memory is measured and why). Like the
+    backend, not part of the settings a resumed run must match."""
     plugins: tuple[str, ...] = ()
     """Modules imported (in every worker too) before agents are built (``--import``): they register
     agents by name with :func:`agents.registry.register_agent`."""
@@ -220,7 +226,8 @@ class RunPlan:
         rest left undone, so ``resume`` can finish the run later."""
         config = self.config
         bar = Progress(len(self.todo), "+".join(config.suites)) if progress and self.todo else None
-        records = run_jobs(self.todo, backend=config.backend, workers=config.workers, address=config.address)
+        records = run_jobs(self.todo, backend=config.backend, workers=config.workers, address=config.address,
+                           memory_limit_mb=config.memory_limit_mb)
         try:
             for rec in records:
                 append_record(self.results, rec)

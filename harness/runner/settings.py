@@ -25,7 +25,7 @@ from conceptfusion.perception.registry import check_encoder_files
 from harness.maps.spatial import DEFAULT_PARSER, SUITE_PARSERS
 from harness.maps.suites import MAP_SUITES
 from harness.replay.record import check_record_mode
-from harness.runner.backends import BACKENDS, parse_ray_address
+from harness.runner.backends import BACKENDS, memory_limit_refusal, parse_ray_address
 from harness.runner.jobs import import_plugins
 from harness.runner.suites import SUITES, Suite, get_suite
 
@@ -280,6 +280,11 @@ def validate_run_config(config: Any) -> None:
             raise HarnessError(f"--address: expected 'auto', 'HOST:PORT' or 'ray://HOST:PORT', got {config.address!r}")
         parse_ray_address(config.address)
     put("timeout_s", _seconds(config.timeout_s, "--timeout"))
+    put("memory_limit_mb", _int(config.memory_limit_mb, "--memory-limit-mb", 1, "MiB of memory per episode worker",
+                                allow_none=True))
+    refusal = memory_limit_refusal(config.backend) if config.memory_limit_mb is not None else None
+    if refusal:
+        raise HarnessError(refusal)
     check_record_mode(config.record, "--record")
     _check_options(config, suites)
 

@@ -25,7 +25,7 @@ from agents.registry import AGENTS, make_agent
 from harness.replay.record import EpisodeRecorder
 from harness.replay.video import render_videos_of
 from harness.report.paths import REPLAYS_DIR, replay_stem
-from harness.runner.jobs import import_plugins, job_record
+from harness.runner.jobs import check_deadline, import_plugins, job_record
 from harness.runner.results import agent_label
 from sim_envs.assets.library import is_library_asset
 from sim_envs.scenes.episodes import Episode
@@ -161,7 +161,9 @@ def _rollout(env, agent, job: EpisodeJob, *, on_step: Callable[[dict, dict], Non
     t0 = time.perf_counter()
     obs, info = env.reset(seed=job.seed, options={"episode": job.episode})
     t_env += time.perf_counter() - t0
+    check_deadline("env.reset returned")
     agent.reset(seed=episode_seed(job))
+    check_deadline("agent.reset returned")
     privileged = bool(getattr(agent, "privileged", False))
     if on_step:
         on_step(obs, info)
@@ -172,11 +174,13 @@ def _rollout(env, agent, job: EpisodeJob, *, on_step: Callable[[dict, dict], Non
         t0 = time.perf_counter()
         action = agent.act(obs, info if privileged else None)
         t1 = time.perf_counter()
+        check_deadline("agent.act returned")
         if recorder:
             recorder.act(action)
         t1r = time.perf_counter()
         obs, reward, terminated, truncated, info = env.step(action)
         t2 = time.perf_counter()
+        check_deadline("env.step returned")
         t_agent += t1 - t0
         t_env += t2 - t1r
         steps += 1
@@ -262,11 +266,26 @@ def episode_recorder(job: EpisodeJob, agent=None) -> EpisodeRecorder | None:
     return EpisodeRecorder(job.task, header, path, mode=job.record, agent=agent)
 
 
+def _past_deadline_then_close(what: str) -> None:
+    """Past the job's deadline (serial backend), an error is a timeout: an agent that caught the
+    timeout interrupt and raised something else in its place is still recorded ``timeout``."""
+    try:
+        check_deadline(what)
+    except BaseException:
+        close_cached_envs()
+        raise
+
+
 def run_episode(job: EpisodeJob) -> dict:
     """Run one episode and return its result record (never raises for in-episode errors, a
     ``SystemExit`` of the agent included; lets :class:`~harness.runner.jobs.JobTimeout` and
     ``KeyboardInterrupt`` through after closing the cached environments). ``os._exit`` cannot
-    be caught in-process: on the process backend it is recorded as ``failed`` (the worker died)."""
+    be caught in-process: on the process backend it is recorded as ``failed`` (the worker died).
+
+    With a deadline set (:func:`~harness.runner.jobs.job_deadline`, the serial backend), the
+    clock is checked each time the agent's constructor, ``reset`` or ``act`` (and the
+    environment's ``reset`` and ``step``) returns, and when the episode raises: past the
+    deadline the episode ends as a timeout, whatever the agent caught."""
     t0 = time.perf_counter()
     status, error, metrics, timings, category, extras = "ok", None, {}, {}, None, {}
     recorder = None
@@ -275,6 +294,7 @@ def run_episode(job: EpisodeJob) -> dict:
             raise ValueError(f"task: expected one of {sorted(TASK_RUNNERS)}, got {job.task!r}")
         import_plugins(job.plugins)
         agent = make_agent(job.agent, **job.agent_kwargs)
+        check_deadline("the agent's constructor returned")
         recorder = episode_recorder(job, agent)
         metrics, timings, category, extras = TASK_RUNNERS[job.task](job, agent, recorder)
         spec = AGENTS.get(job.agent)
@@ -283,12 +303,14 @@ def run_episode(job: EpisodeJob) -> dict:
             extras["twin_of"] = spec.twin_of
         extras["privileged"] = bool(getattr(agent, "privileged", False))
     except SystemExit as exc:  # sys.exit() in an agent ends the episode, not the run
+        _past_deadline_then_close("the episode called sys.exit()")
         status = "failed"
         error = (f"SystemExit: the episode called sys.exit({exc.code!r}); recorded as failed\n"
                  + "".join(traceback.format_exc(limit=-4)))
         metrics = {"success": False}
         close_cached_envs()
     except Exception as exc:  # the run goes on; the record says what broke
+        _past_deadline_then_close(f"the episode raised {type(exc).__name__}")
         status = "failed"
         error = f"{type(exc).__name__}: {exc}\n" + "".join(traceback.format_exc(limit=-4))
         metrics = {"success": False}

@@ -52,6 +52,10 @@ def _cli(capsys, tmp_path, *args) -> tuple[int, str, Path]:
     ({"timeout_s": -3.0}, r"^--timeout: expected a number of seconds > 0, got -3.0$"),
     ({"timeout_s": float("nan")}, r"^--timeout: expected a number of seconds > 0, got nan$"),
     ({"timeout_s": "soon"}, r"^--timeout: expected a number of seconds > 0, got 'soon'$"),
+    ({"memory_limit_mb": 0}, r"^--memory-limit-mb: expected an integer >= 1 \(MiB of memory per episode worker\), got 0$"),
+    ({"memory_limit_mb": "lots"}, r"^--memory-limit-mb: expected an integer >= 1 .*got 'lots'$"),
+    ({"memory_limit_mb": 200, "backend": "serial"}, r"^--memory-limit-mb: only for --backend process .*got --backend serial: "
+                                                    r"the serial backend runs episodes in this process"),
     ({"backend": "rey"}, r"^--backend: expected one of process, serial, ray, got 'rey'; did you mean 'ray'\?$"),
     ({"address": "127.0.0.1:6379"}, r"^--address: only for --backend ray"),
     ({"backend": "ray", "address": "host:port"}, r"^--address: expected 'auto', 'HOST:PORT' or 'ray://HOST:PORT', got 'host:port'$"),
@@ -157,6 +161,11 @@ def test_a_user_agent_takes_the_options_its_signature_names(tmp_path, monkeypatc
     (["--workers", "0"], "cfharness run: --workers: expected an integer >= 1 (worker processes), got '0'"),
     (["--timeout", "0"], "cfharness run: --timeout: expected a number of seconds > 0, got '0'"),
     (["--timeout", "soon"], "cfharness run: --timeout: expected a number of seconds > 0, got 'soon'"),
+    (["--memory-limit-mb", "0"], "cfharness run: --memory-limit-mb: expected an integer >= 1 (MiB of memory per episode "
+                                 "worker), got '0'"),
+    (["--memory-limit-mb", "200", "--backend", "serial"], "cfharness run: --memory-limit-mb: only for --backend process (each "
+     "episode's worker process is watched and stopped past the limit), got --backend serial: the serial backend runs episodes "
+     "in this process, which it cannot stop without ending the run"),
     (["--backend", "rey"], "cfharness run: --backend: expected one of process, serial, ray, got 'rey'; did you mean 'ray'?"),
     (["--suite", "serch"], "cfharness run: --suite: unknown suite 'serch'; did you mean 'search'"),
     (["--agent", "map-puser"], "cfharness run: --agent: unknown agent 'map-puser'; did you mean 'map-pusher'"),
