@@ -26,6 +26,8 @@ EXEMPT = {
     "harness.runner.jobs.JobTimeout": "a control-flow signal like KeyboardInterrupt (a BaseException, "
     "so a job's `except Exception` cannot swallow it); the serial backend catches it and records "
     "`timeout`, it never reaches a caller",
+    "harness.commands.RunTerminated": "SIGTERM during cfharness run, raised as a KeyboardInterrupt so that every job "
+    "lets it through; cmd_run catches it and exits 143, it never reaches a caller",
 }
 """Error classes that need not join the hierarchy -> why."""
 

@@ -116,6 +116,9 @@ def test_missing_and_non_json_files(tmp_path):
     with pytest.raises(SplitError, match="no such split file"):
         load_splits(tmp_path / "nope.json")
     (tmp_path / "bin.json").write_bytes(b"\x00\xff\x10")
-    with pytest.raises(SplitError, match="not a JSON split file"):
+    with pytest.raises(SplitError, match=r"bin\.json:line 1: not a split file: not UTF-8 text \(byte 0xff at offset 1\)"):
         load_splits(tmp_path / "bin.json")
+    (tmp_path / "text.json").write_text("{not json")
+    with pytest.raises(SplitError, match="not a JSON split file"):
+        load_splits(tmp_path / "text.json")
     assert issubclass(SplitError, ValueError)
