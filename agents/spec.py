@@ -18,6 +18,7 @@ from conceptfusion.errors import AgentError, UnknownNameError
 from conceptfusion.names import unknown_name_error
 
 __all__ = [
+    "import_module_cleanly",
     "Agent", "AgentSpec", "Option", "AGENTS", "register_agent", "agent_names", "coerce_kwargs", "check_option", "import_factory",
     "spec_summary",
 ]
@@ -200,6 +201,20 @@ def coerce_kwargs(spec: AgentSpec, kwargs: dict[str, Any]) -> dict[str, Any]:
     return {key: check_option(spec, key, value) for key, value in kwargs.items()}
 
 
+def import_module_cleanly(module: str, where: str, expected: str):
+    """``importlib.import_module(module)``, with every way a user module can fail to import (not
+    found, its own code raising, its own code calling ``sys.exit``) turned into one
+    ``ValueError`` starting with ``where`` and saying it expected ``expected``."""
+    try:
+        return importlib.import_module(module)
+    except ImportError as exc:
+        raise ValueError(f"{where}: cannot import {module!r}: {exc}") from exc
+    except SystemExit as exc:
+        raise ValueError(f"{where}: expected {expected}, but importing {module!r} called sys.exit({exc.code!r})") from None
+    except Exception as exc:  # the module's own code failed
+        raise ValueError(f"{where}: expected {expected}, but importing {module!r} raised {type(exc).__name__}: {exc}") from exc
+
+
 def import_factory(path: str) -> Callable[..., Agent]:
     """The attribute an import path ``"package.module:ClassOrFactory"`` names.
 
@@ -209,16 +224,7 @@ def import_factory(path: str) -> Callable[..., Agent]:
     module, sep, attr = path.partition(":")
     if not sep or not module or not attr:
         raise ValueError(f"agent import path: expected 'package.module:ClassOrFactory', got {path!r}")
-    try:
-        mod = importlib.import_module(module)
-    except ImportError as exc:
-        raise ValueError(f"agent import path {path!r}: cannot import {module!r}: {exc}") from exc
-    except SystemExit as exc:
-        raise ValueError(f"agent import path {path!r}: expected a module that imports cleanly, but importing {module!r} "
-                         f"called sys.exit({exc.code!r})") from None
-    except Exception as exc:  # the module's own code failed
-        raise ValueError(f"agent import path {path!r}: expected a module that imports cleanly, but importing {module!r} "
-                         f"raised {type(exc).__name__}: {exc}") from exc
+    mod = import_module_cleanly(module, f"agent import path {path!r}", "a module that imports cleanly")
     try:
         return getattr(mod, attr)
     except AttributeError:

@@ -13,7 +13,6 @@ This module imports nothing of the harness but :mod:`harness.runner.results`.
 from __future__ import annotations
 
 import contextlib
-import importlib
 import os
 import threading
 import time
@@ -137,17 +136,10 @@ def import_plugins(plugins: Iterable[str] | None) -> None:
             ``sys.exit`` while being imported (refused, instead of ending the caller with its
             exit code).
     """
+    from agents.spec import import_module_cleanly
+
     for name in plugins or ():
-        try:
-            importlib.import_module(name)
-        except ImportError as exc:
-            raise ValueError(f"--import {name!r}: cannot import it: {exc}") from exc
-        except SystemExit as exc:
-            raise ValueError(f"--import {name!r}: expected a module that registers agents, but importing it called "
-                             f"sys.exit({exc.code!r}); refusing to run") from None
-        except Exception as exc:  # the module's own code failed
-            raise ValueError(f"--import {name!r}: expected a module that imports cleanly, but importing it raised "
-                             f"{type(exc).__name__}: {exc}") from exc
+        import_module_cleanly(name, f"--import {name!r}", "a module that imports cleanly (it registers agents or encoders)")
 
 
 @contextlib.contextmanager

@@ -67,10 +67,10 @@ PLUGINS = {
 
 
 @pytest.mark.parametrize("module, line", [
-    ("cf_raises_on_import", "cfharness run: --import 'cf_raises_on_import': expected a module that imports cleanly, but "
-                            "importing it raised RuntimeError: no licence server"),
-    ("cf_exits_on_import", "cfharness run: --import 'cf_exits_on_import': expected a module that registers agents, but "
-                           "importing it called sys.exit(3); refusing to run"),
+    ("cf_raises_on_import", "cfharness run: --import 'cf_raises_on_import': expected a module that imports cleanly (it "
+                            "registers agents or encoders), but importing 'cf_raises_on_import' raised RuntimeError: no licence server"),
+    ("cf_exits_on_import", "cfharness run: --import 'cf_exits_on_import': expected a module that imports cleanly (it "
+                           "registers agents or encoders), but importing 'cf_exits_on_import' called sys.exit(3)"),
 ])
 def test_an_import_that_raises_or_exits_is_one_line(capsys, tmp_path, monkeypatch, module, line):
     (tmp_path / f"{module}.py").write_text(PLUGINS[module])

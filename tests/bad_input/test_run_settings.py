@@ -67,7 +67,7 @@ def _cli(capsys, tmp_path, *args) -> tuple[int, str, Path]:
                                      r"agents for it: frame-pusher, map-pusher"),
     ({"suites": ("query",), "agents": ("map-pusher",)}, r"^--agent: the map suites \(query\) run no agents"),
     ({"agents": ("no_such_module_here:Agent",)}, r"^--agent: agent import path .*cannot import 'no_such_module_here'"),
-    ({"plugins": ("no_such_plugin_here",)}, r"^--import 'no_such_plugin_here': cannot import it"),
+    ({"plugins": ("no_such_plugin_here",)}, r"^--import 'no_such_plugin_here': cannot import 'no_such_plugin_here'"),
 ])
 def test_a_bad_setting_is_refused_naming_it(kwargs, match):
     with pytest.raises(HarnessError, match=match):
