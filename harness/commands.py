@@ -15,7 +15,7 @@ import threading
 import time
 from pathlib import Path
 
-__all__ = ["add_eval_commands", "fail_fast_stop", "parse_agent_options"]
+__all__ = ["EXIT_NO_ROOM", "add_eval_commands", "fail_fast_stop", "parse_agent_options"]
 
 
 def parse_agent_options(items: list[str] | None, flag: str = "--agent-option") -> dict:
@@ -112,24 +112,52 @@ def _sigterm_stops_the_run():
         signal.signal(signal.SIGTERM, previous)
 
 
+EXIT_NO_ROOM = 74
+"""Exit status of a ``cfharness run`` stopped because its run folder's file system is full, over
+quota or read-only (``EX_IOERR`` of ``sysexits.h``): not 1, which says an agent regressed, nor 2,
+which says the command was refused before it started."""
+
+
+def _kept(plan) -> str:
+    """The finished records of ``plan``'s results file, in words ("3 finished records")."""
+    from harness.runner.results import load_results
+
+    try:
+        n = len(load_results(plan.results))
+    except (ValueError, OSError):
+        return "the finished records"
+    return f"{n} finished record{'' if n == 1 else 's'}"
+
+
+def _resume_command(out: str) -> str:
+    return f"cfharness run --out {shlex.quote(str(out))} --resume"
+
+
 def _interrupted(exc: KeyboardInterrupt, out: str, plan) -> int:
     """One line on stderr for a run stopped by Ctrl-C (exit status 130) or ``SIGTERM`` (143):
     what is kept and the command that finishes the run."""
-    from harness.runner.results import load_results
-
     signame, status = ("SIGTERM", 143) if isinstance(exc, RunTerminated) else ("Ctrl-C", 130)
     if plan is None:
         print(f"cfharness run: stopped by {signame} before the first episode; nothing was run", file=sys.stderr)
         return status
-    try:
-        n = len(load_results(plan.results))
-        kept = f"{n} finished record{'' if n == 1 else 's'}"
-    except (ValueError, OSError):
-        kept = "the finished records"
-    resume = f"cfharness run --out {shlex.quote(str(out))} --resume"
-    print(f"cfharness run: stopped by {signame}; {kept} kept in {plan.results} "
-          f"({len(plan.jobs)} planned); finish the run with: {resume}", file=sys.stderr)
+    print(f"cfharness run: stopped by {signame}; {_kept(plan)} kept in {plan.results} "
+          f"({len(plan.jobs)} planned); finish the run with: {_resume_command(out)}", file=sys.stderr)
     return status
+
+
+def _no_room(exc, out: str, plan) -> int:
+    """One line on stderr for a run stopped by a full (over-quota, read-only) file system
+    (a :class:`~harness.runner.folder.RunFolderFullError`), exit status :data:`EXIT_NO_ROOM`:
+    what could not be written, what is kept and the command that finishes the run once there is
+    room. When the run was never planned (``plan`` None: its lock file or ``run.json`` could not
+    be written) nothing was run, and the same command runs it."""
+    lead = f"cfharness run: --out {out}: could not write {exc.what} ({exc.filename}): {exc.strerror}"
+    if plan is None:
+        print(f"{lead}; nothing was run; free space and run the command again", file=sys.stderr)
+    else:
+        print(f"{lead}; {_kept(plan)} kept in {plan.results} ({len(plan.jobs)} planned); free space and finish the run "
+              f"with: {_resume_command(out)}", file=sys.stderr)
+    return EXIT_NO_ROOM
 
 
 def cmd_run(args: argparse.Namespace) -> int:
@@ -138,7 +166,13 @@ def cmd_run(args: argparse.Namespace) -> int:
     ``--out``; a bad one is one line on stderr and exit status 2. The run holds ``--out`` for its
     whole life (:mod:`harness.runner.folder`): a second run on the same folder is refused with
     status 2, naming the holder. Ctrl-C stops the run with status 130 (``SIGTERM``: 143), keeping
-    every finished record and printing the command that resumes it."""
+    every finished record and printing the command that resumes it. A file system that fills up
+    (or goes over quota, or turns read-only) while the run writes its folder stops the run the
+    same way with status :data:`EXIT_NO_ROOM` (74), naming what could not be written (the lock
+    file, ``run.json``, a results record, the report); an ``--out`` that is read-only from the
+    start is refused with status 2."""
+    from harness.runner.folder import RunFolderFullError
+
     plan = None
     try:
         with _sigterm_stops_the_run():
@@ -146,6 +180,8 @@ def cmd_run(args: argparse.Namespace) -> int:
                 config = _run_config(args)
                 floor_as = _parse_floor_as(args.floor_as, config)
                 plan = _plan(config, args.out, args.resume)
+            except RunFolderFullError:
+                raise
             except (ValueError, TypeError, OSError) as exc:
                 print(f"cfharness run: {exc}", file=sys.stderr)
                 return 2
@@ -155,6 +191,8 @@ def cmd_run(args: argparse.Namespace) -> int:
                 plan.close()
     except KeyboardInterrupt as exc:
         return _interrupted(exc, args.out, plan)
+    except RunFolderFullError as exc:
+        return _no_room(exc, args.out, plan)
 
 
 def _plan(config, out: str, resume: bool):
@@ -200,9 +238,11 @@ def _execute(args: argparse.Namespace, config, plan, floor_as: dict[str, str]) -
     if not args.no_report:
         from harness.replay.video import render_missing_videos
         from harness.report.html import write_reports
+        from harness.runner.folder import writing
 
-        render_missing_videos(args.out)
-        path, html_path = write_reports([args.out], Path(args.out) / "report")
+        render_missing_videos(args.out)  # a video that cannot be written is logged; the report goes on
+        with writing("the report", Path(args.out) / "report"):
+            path, html_path = write_reports([args.out], Path(args.out) / "report")
         print(f"report: {path}\nHTML report: {html_path}")
     if stopped:
         print(f"--fail-fast: stopped after {stopped[0]['suite']} {stopped[0]['agent']} {stopped[0]['episode_id']} settled a "
@@ -436,7 +476,12 @@ def add_eval_commands(sub) -> None:
         "  cfharness run --suite rearrange --limit 10 --backend serial\n"
         "  cfharness run --suite search --agent mypkg.agents:MyAgent\n"
         "  cfharness run --import mypkg.register --suite rearrange --agent my-pusher\n"
-        "  cfharness run --backend ray --address auto\n  cfharness run --out runs/main --resume",
+        "  cfharness run --backend ray --address auto\n  cfharness run --out runs/main --resume\n\n"
+        "exit status:\n  0    done\n  1    an agent broke its regression bound (REGRESSION lines)\n"
+        "  2    refused before starting: a bad setting, a busy or read-only --out\n"
+        "  74   the disk filled up (or went over quota, or turned read-only) during the run\n"
+        "  130  Ctrl-C (143: SIGTERM)\n"
+        "  after 74, 130 and 143 the finished records are kept, and --resume finishes the run",
         formatter_class=argparse.RawDescriptionHelpFormatter,
     )
     run.add_argument("--suite", action="append", help=f"suite to run, repeatable (choices: {', '.join(SUITES)})")

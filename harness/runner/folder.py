@@ -16,10 +16,16 @@ that plans, then resumes) shares one lock, counted, and the folder is free once 
 :class:`RunLock` of it is released (or the process ends). The holder's line is rewritten in
 place on the locked descriptor, not by an atomic rename: a rename would put a new file (a new
 lock) in place of the one other processes lock.
+
+A run folder whose file system fills up (or turns read-only) during a run is not a bad setting
+but a stop: :func:`writing` turns such an ``OSError`` (:data:`NO_ROOM_ERRNOS`) into
+:class:`RunFolderFullError`, naming what could not be written, for ``cfharness run`` to word
+with the command that resumes the run.
 """
 
 from __future__ import annotations
 
+import contextlib
 import errno
 import fcntl
 import json
@@ -29,16 +35,49 @@ from dataclasses import dataclass, field
 from datetime import datetime, timezone
 from pathlib import Path
 
-from conceptfusion.errors import HarnessError
+from conceptfusion.errors import ConceptFusionError, HarnessError
 
-__all__ = ["LOCK_FILE", "RunFolderBusyError", "RunLock", "check_run_folder", "lock_run_folder", "refuse_if_busy"]
+__all__ = ["LOCK_FILE", "NO_ROOM_ERRNOS", "RunFolderBusyError", "RunFolderFullError", "RunLock", "check_run_folder",
+           "lock_run_folder", "refuse_if_busy", "writing"]
 
 LOCK_FILE = ".cfharness.lock"
 """Name of the lock file inside a run folder."""
+NO_ROOM_ERRNOS = frozenset(e for e in (errno.ENOSPC, getattr(errno, "EDQUOT", None), errno.EROFS) if e is not None)
+"""``errno`` values that say the file system takes no more writes: full, over quota, read-only."""
 
 
 class RunFolderBusyError(HarnessError):
     """Another process's run holds the run folder."""
+
+
+class RunFolderFullError(ConceptFusionError, OSError):
+    """Something of a run could not be written because its file system is full, over quota or
+    read-only (an ``errno`` of :data:`NO_ROOM_ERRNOS`, kept as this error's ``errno``). An
+    ``OSError``, not a :class:`~conceptfusion.errors.HarnessError` (a ``ValueError``): it is no
+    bad setting, and the run it stops can be resumed once there is room.
+
+    Attributes:
+        what: what could not be written, in words ("a results record", "run.json", "the report").
+        filename: its path.
+    """
+
+    def __init__(self, what: str, path, cause: OSError) -> None:
+        super().__init__(cause.errno, cause.strerror or os.strerror(cause.errno), str(path))
+        self.what = what
+
+
+@contextlib.contextmanager
+def writing(what: str, path):
+    """Within the block, an ``OSError`` of :data:`NO_ROOM_ERRNOS` becomes
+    :class:`RunFolderFullError` naming ``what`` (in words) and ``path``; others pass unchanged."""
+    try:
+        yield
+    except RunFolderFullError:
+        raise
+    except OSError as exc:
+        if exc.errno not in NO_ROOM_ERRNOS:
+            raise
+        raise RunFolderFullError(what, path, exc) from exc
 
 
 @dataclass
@@ -87,7 +126,8 @@ def check_run_folder(run_dir) -> Path:
     Raises:
         HarnessError: an empty path, a path that is a file or lies under a file, or a folder
             (or, for a folder still to be made, its nearest existing parent) that this user
-            cannot write in (``os.access``: as root, permissions do not refuse).
+            cannot write in (``os.access``: as root, permissions do not refuse; a read-only file
+            system does, and the message says so).
     """
     if not isinstance(run_dir, (str, os.PathLike)) or not str(run_dir).strip():
         raise HarnessError(f"--out: expected a folder path, got {run_dir!r}")
@@ -103,8 +143,17 @@ def check_run_folder(run_dir) -> Path:
         raise HarnessError(f"--out {run_dir}: expected a folder path, but {existing} is a file, so no folder can be made there")
     if not os.access(existing, os.W_OK | os.X_OK):
         where = "this folder" if existing == p else f"{existing}, where it would be made,"
-        raise HarnessError(f"--out {run_dir}: expected a folder this user can write in, but {where} is not writable")
+        why = " (a read-only file system)" if _read_only(existing) else ""
+        raise HarnessError(f"--out {run_dir}: expected a folder this user can write in, but {where} is not writable{why}")
     return p
+
+
+def _read_only(folder: Path) -> bool:
+    """Whether ``folder`` lies on a file system mounted read-only (False when that cannot be told)."""
+    try:
+        return bool(os.statvfs(folder).f_flag & getattr(os, "ST_RDONLY", 0))
+    except OSError:
+        return False
 
 
 def _holder(fd: int) -> str:
@@ -153,6 +202,8 @@ def lock_run_folder(run_dir, run_id: str | None = None) -> RunLock:
     Raises:
         RunFolderBusyError: another process holds it (naming pid, host, run id and start time).
         HarnessError: the folder or its lock file cannot be made (naming the path and the reason).
+        RunFolderFullError: they cannot be written because the file system is full, over quota
+            or read-only.
     """
     p = check_run_folder(run_dir)
     try:
@@ -187,6 +238,8 @@ def lock_run_folder(run_dir, run_id: str | None = None) -> RunLock:
             lock.release()
             raise
     except OSError as exc:
+        if exc.errno in NO_ROOM_ERRNOS:
+            raise RunFolderFullError("the run folder's lock file", p / LOCK_FILE, exc) from exc
         raise HarnessError(f"--out {run_dir}: expected a run folder this process can make and write, got "
                            f"{exc.strerror or exc} ({exc.filename or p})") from exc
     return lock

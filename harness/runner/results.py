@@ -10,7 +10,8 @@ A record (one line, one JSON object)::
      "finished_at": "2025-01-01T00:00:00+00:00"}
 
 Crash safety: :func:`append_record` writes each line with one ``os.write`` on an ``O_APPEND``
-descriptor and fsyncs it, so a killed writer loses at most the line it was writing. Such a
+descriptor and fsyncs it, so a killed writer loses at most the line it was writing; a write that
+fails (a full disk writes part of the line, then raises ``ENOSPC``) is cut back at once. Such a
 half-written last line is skipped (with a warning) by :func:`load_results` and cut off by
 :func:`repair_results` before a resumed run appends. Other damage is not what a killed writer
 leaves: a record with a bad field (``"seed": "abc"``, ``"status": "weird"``, NaN) is always
@@ -36,7 +37,7 @@ from pathlib import Path
 
 from conceptfusion.errors import HarnessError, MissingFileError
 from conceptfusion.io_utils import (
-    MAX_RESULTS_BYTES, atomic_write_bytes, atomic_write_text, check_regular_file, read_file_bytes, read_json_file,
+    MAX_RESULTS_BYTES, atomic_write_text, check_regular_file, read_file_bytes, read_json_file,
 )
 from conceptfusion.strict_json import loads_strict
 
@@ -205,7 +206,10 @@ def append_record(path: str | os.PathLike, record: dict) -> None:
 
     Creates missing parent folders. Safe for one writer process. Raises ``ResultsFormatError``
     when the file ends with a half-written line (call :func:`repair_results` first), so a new
-    record is never glued onto a broken one.
+    record is never glued onto a broken one. A write or fsync that fails (``OSError``: a full
+    disk, ``ENOSPC``, writes part of a line first) cuts the file back to the length it had
+    (cutting needs no free space) before the error is raised, so the file holds whole lines only;
+    were the cut to fail too, the half-written last line is what :func:`repair_results` removes.
     """
     if not isinstance(record, dict):
         raise TypeError(f"record: expected a dict, got {type(record).__name__}")
@@ -223,12 +227,25 @@ def append_record(path: str | os.PathLike, record: dict) -> None:
                 if f.read(1) != b"\n":
                     raise ResultsFormatError(f"{p}: ends with a half-written line; call repair_results({str(p)!r}) "
                                              "before appending")
-        written = os.write(fd, data)
-        while written < len(data):  # a regular file takes the whole line at once; this is a safety net
-            written += os.write(fd, data[written:])
-        os.fsync(fd)
+        try:
+            written = os.write(fd, data)
+            while written < len(data):  # a short write: on a full disk, the next write raises ENOSPC
+                written += os.write(fd, data[written:])
+            os.fsync(fd)
+        except OSError:
+            _cut_back(fd, size)
+            raise
     finally:
         os.close(fd)
+
+
+def _cut_back(fd: int, size: int) -> None:
+    """Truncate the file of ``fd`` to ``size`` bytes after a failed append (best effort: a file
+    system that refuses even this leaves a half-written last line, which :func:`repair_results` cuts)."""
+    try:
+        os.ftruncate(fd, size)
+    except OSError:
+        pass
 
 
 def _check_header(rec, where: str) -> None:
@@ -390,7 +407,8 @@ def load_results(path: str | os.PathLike, *, strict: bool = False) -> list[dict]
 def repair_results(path: str | os.PathLike) -> int:
     """Make a results file safe to append to; returns the bytes removed.
 
-    A half-written last line (what a killed writer leaves) is cut off (atomic rewrite). A missing
+    A half-written last line (what a killed writer leaves) is cut off in place (a truncate: it
+    needs no free space, so a run stopped by a full disk repairs before space is freed). A missing
     or healthy file is left alone (returns 0). Any other damage is refused with
     ``ResultsFormatError`` naming the file and the line(s), and nothing is changed: a corrupt
     line elsewhere is not the signature of a killed writer but of something else writing to the
@@ -410,7 +428,7 @@ def repair_results(path: str | os.PathLike) -> int:
                                  f"{', '.join(str(no) for no, _ in corrupt)} and resume again")
     if good_end == len(data):
         return 0
-    atomic_write_bytes(p, data[:good_end])
+    os.truncate(p, good_end)  # the first good_end bytes stay as they are
     return len(data) - good_end
 
 

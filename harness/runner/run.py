@@ -32,12 +32,12 @@ from typing import Callable
 
 from agents.registry import AGENTS, resolve_agent
 from harness.runner.backends import check_backend, run_jobs
-from harness.runner.folder import RunLock, check_run_folder, lock_run_folder, refuse_if_busy
+from harness.runner.folder import RunLock, check_run_folder, lock_run_folder, refuse_if_busy, writing
 from harness.runner.jobs import Job, import_plugins
 from harness.runner.map_jobs import map_suite_jobs
 from harness.runner.results import (
-    agent_label, append_record, check_run_records, completed_keys, load_results, read_run_config, record_key, repair_results,
-    write_run_config,
+    RUN_CONFIG_FILE, agent_label, append_record, check_run_records, completed_keys, load_results, read_run_config,
+    record_key, repair_results, write_run_config,
 )
 from harness.runner.settings import accepts_keyword, check_agent, validate_run_config
 from harness.runner.suites import Suite, get_suite, suite_encoder, suite_episodes
@@ -223,14 +223,18 @@ class RunPlan:
         """Run the jobs still to do on the config's backend, appending each record as it comes;
         returns all records of the run. ``stop`` (called with each new record after it is
         written) ends the run early when it returns True: the jobs in flight are stopped and the
-        rest left undone, so ``resume`` can finish the run later."""
+        rest left undone, so ``resume`` can finish the run later. A record that cannot be written
+        because the disk is full (or over quota, or read-only) stops the run the same way, raising
+        :class:`~harness.runner.folder.RunFolderFullError`; the file keeps whole records only
+        (:func:`~harness.runner.results.append_record`), and ``resume`` runs that episode again."""
         config = self.config
         bar = Progress(len(self.todo), "+".join(config.suites)) if progress and self.todo else None
         records = run_jobs(self.todo, backend=config.backend, workers=config.workers, address=config.address,
                            memory_limit_mb=config.memory_limit_mb)
         try:
             for rec in records:
-                append_record(self.results, rec)
+                with writing("a results record", self.results):
+                    append_record(self.results, rec)
                 if on_record:
                     on_record(rec)
                 if bar:
@@ -264,6 +268,8 @@ def plan_run(config: RunConfig, run_dir: str | Path, *, resume: bool = False) ->
             with another run's records or two different outcomes of one episode.
         FileNotFoundError: ``resume`` in a folder without ``run.json``.
         RayUnavailableError: the Ray backend is not installed or its cluster does not answer.
+        RunFolderFullError: the lock file, ``run.json`` or the repair of the results cannot be
+            written: the file system is full, over quota or read-only.
     """
     run_dir = check_run_folder(run_dir)
     refuse_if_busy(run_dir)
@@ -281,12 +287,14 @@ def plan_run(config: RunConfig, run_dir: str | Path, *, resume: bool = False) ->
         if resume:
             if _stored_run_id(config, run_dir) != run_id:
                 raise ValueError(f"{run_dir}: its run.json changed while this run was being planned; resume again")
-            repair_results(results)
+            with writing("results.jsonl, cutting its half-written last line", results):
+                repair_results(results)
             check_run_records(results, run_id)
         else:
             _refuse_results(run_dir)
-            write_run_config(run_dir, {"run_id": run_id, "settings": config.settings(), "backend": config.backend,
-                                       "record": config.record}, overwrite=True)
+            with writing("run.json", run_dir / RUN_CONFIG_FILE):
+                write_run_config(run_dir, {"run_id": run_id, "settings": config.settings(), "backend": config.backend,
+                                           "record": config.record}, overwrite=True)
         done = completed_keys(load_results(results))
     except BaseException:
         lock.release()
