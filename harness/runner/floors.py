@@ -547,8 +547,9 @@ def _table(data: dict) -> str:
 
 
 def markdown_table(data: dict) -> str:
-    """The floors of ``data`` (a floors file's content) as the README's Markdown table, one row
-    per bound (the test suite checks the README holds exactly this table for the committed file)."""
+    """The floors of ``data`` (a floors file's content) as the Markdown table of
+    ``docs/regression-gate.md``, one row per bound (the test suite checks the page holds exactly
+    this table, recomputed from the committed records)."""
     lines = ["| suite | agent | bound | calibration | pinned episodes | detects a 15-point drop (rise) | false alarm (at p / expected) |",
              "|---|---|---|---|---|---|---|"]
     for suite, entry in data["suites"].items():

@@ -1,0 +1,40 @@
+"""The documentation: a short README whose links resolve, and the docs site (MkDocs, strict mode:
+a broken link, a missing image or a page outside the navigation fails the build)."""
+
+from __future__ import annotations
+
+import re
+import subprocess
+import sys
+from pathlib import Path
+
+import yaml
+
+REPO = Path(__file__).resolve().parents[1]
+README_MAX_LINES = 250
+
+
+def test_the_readme_is_short_and_its_local_links_resolve():
+    text = (REPO / "README.md").read_text()
+    assert len(text.splitlines()) <= README_MAX_LINES
+    links = re.findall(r"\]\(([^)#\s]+)\)", text)
+    local = [link for link in links if not re.match(r"[a-z]+://", link)]
+    assert local and all((REPO / link).exists() for link in local), [link for link in local if not (REPO / link).exists()]
+    # every page of the site is one the README points to (the model card and history included)
+    pages = {p.name for p in (REPO / "docs").glob("*.md") if p.name != "index.md"}
+    assert pages == {Path(link).name for link in local if link.startswith("docs/") and link.endswith(".md")}
+
+
+def test_every_page_is_in_the_site_navigation():
+    nav = yaml.safe_load((REPO / "mkdocs.yml").read_text())["nav"]
+    listed = {page for entry in nav for page in entry.values()}
+    assert listed == {p.name for p in (REPO / "docs").glob("*.md")}
+
+
+def test_the_docs_site_builds_in_strict_mode(tmp_path):
+    done = subprocess.run([sys.executable, "-m", "mkdocs", "build", "--strict", "-f", str(REPO / "mkdocs.yml"),
+                           "-d", str(tmp_path / "site")], cwd=REPO, capture_output=True, text=True, timeout=600)
+    assert done.returncode == 0, done.stderr[-3000:]
+    assert "WARNING" not in done.stderr
+    built = {p.parent.name for p in (tmp_path / "site").glob("*/index.html")}
+    assert {"environments", "regression-gate", "results"} <= built
