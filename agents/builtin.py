@@ -55,6 +55,14 @@ def make_mapper(
     ``perception`` is an encoder spec string (``proposer`` then names the mask proposer), a
     :class:`~conceptfusion.perception.featurizer.PerceptionSpec`, or a featurizer already built.
 
+    Example::
+
+        from agents import make_mapper
+
+        mapper = make_mapper("color")            # any --encoder spec, a registered one too
+        mapper.integrate(frame)                  # a conceptfusion.RGBDFrame
+        result = mapper.locate("red box")        # regions, relevancy, found or not
+
     Raises:
         UnknownNameError: unknown encoder or proposer name (naming the nearest valid ones).
     """

@@ -54,6 +54,13 @@ def make_agent(name: str, **kwargs: Any) -> Agent:
 
     Unknown names raise :class:`~conceptfusion.errors.UnknownNameError` (a ``ValueError``) naming
     the nearest registered ones. The built object must have ``reset``, ``act`` and ``privileged``.
+
+    Example::
+
+        from agents import make_agent
+
+        agent = make_agent("map-pusher", encoder="color")   # options as cfharness list shows them
+        agent.reset(seed=0)
     """
     factory = resolve_agent(name)
     if name in AGENTS:

@@ -55,6 +55,13 @@ class Option:
 
     ``AgentSpec(kwargs=...)`` takes these, or the short forms ``(type, default)`` and
     ``(type, default, check)``.
+
+    Example::
+
+        from agents import Option
+
+        Option(str, "embedded")                  # --agent-option encoder=... is checked as a string
+        Option.at_least(int, 4, 1)              # an integer >= 1, default 4
     """
 
     type: type
@@ -111,7 +118,16 @@ def _as_option(key: str, value: Any) -> Option:
 
 @dataclass(frozen=True)
 class AgentSpec:
-    """How to build one agent by name."""
+    """How to build one agent by name: ``cfharness run --agent NAME`` builds it with
+    ``factory(**options)``, each option checked against :attr:`kwargs`.
+
+    Example::
+
+        from agents import AgentSpec, register_agent
+
+        register_agent(AgentSpec("my-walker", "mypkg.agents:MyWalker", "object_search", "walks at random",
+                                 {"seed": (int, 0)}))
+    """
 
     name: str
     factory: Callable[..., Agent] | str
@@ -147,7 +163,17 @@ AGENTS: dict[str, AgentSpec] = {}
 
 
 def register_agent(spec: AgentSpec) -> AgentSpec:
-    """Add a spec; a name can be registered once."""
+    """Add a spec; a name can be registered once (``ValueError`` naming it otherwise).
+
+    Example::
+
+        from agents import AgentSpec, Option, make_mapper, register_agent
+
+        register_agent(AgentSpec("my-pusher", lambda encoder="embedded", seed=0: MyPusher(make_mapper(encoder), seed),
+                                 "tabletop_rearrange", "my pusher", {"encoder": Option(str, "embedded"),
+                                 "seed": Option(int, 0)}, uses_map=True))
+        # cfharness run --import mymodule --suite rearrange --agent my-pusher
+    """
     if spec.name in AGENTS:
         raise ValueError(f"agent {spec.name!r} is already registered")
     AGENTS[spec.name] = spec

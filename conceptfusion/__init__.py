@@ -11,6 +11,34 @@
   (nearest-name lookups), :mod:`conceptfusion.io_utils` (atomic writes);
   :mod:`conceptfusion.synthetic` renders exact box scenes for tests and the simulator-free demo.
 
+The few names a user needs are importable from here (loaded on first use, so ``import
+conceptfusion`` stays cheap: no torch, no simulator)::
+
+    from conceptfusion import RGBDFrame, load_map, make_encoder, register_encoder, save_map
+
 May import: nothing of this project outside ``conceptfusion`` (no simulator, agent, planner or
 harness module); heavy optional libraries (torch, transformers) only where they are used.
 """
+
+from __future__ import annotations
+
+__all__ = ["RGBDFrame", "load_map", "make_encoder", "register_encoder", "save_map"]
+
+
+def __getattr__(name: str):
+    """A public name of :data:`__all__`, imported from its module on first use."""
+    if name in ("register_encoder", "make_encoder"):
+        from conceptfusion.perception import registry as module
+    elif name in ("load_map", "save_map"):
+        from conceptfusion.map import persistence as module
+    elif name == "RGBDFrame":
+        from conceptfusion import frames as module
+    else:
+        raise AttributeError(f"module 'conceptfusion' has no attribute {name!r} (public names: {', '.join(__all__)})")
+    value = getattr(module, name)
+    globals()[name] = value
+    return value
+
+
+def __dir__() -> list[str]:
+    return sorted(set(globals()) | set(__all__))

@@ -21,6 +21,7 @@ __all__ = [
     "MissingFileError",
     "MissingDependencyError",
     "CheckpointError",
+    "EncoderOutputError",
     "CalibrationFileError",
     "UnknownNameError",
     "UnknownKeyError",
@@ -68,6 +69,12 @@ class MissingDependencyError(ConceptFusionError, ImportError):
 
 class CheckpointError(ConceptFusionError, ValueError):
     """A model checkpoint is incomplete, corrupt, or not the kind of model expected."""
+
+
+class EncoderOutputError(ConceptFusionError, ValueError):
+    """A registered encoder answered with the wrong shape, a NaN or inf, or rows that are not unit
+    vectors (:mod:`conceptfusion.perception.checked`); the message names the encoder, the method,
+    what was expected and what arrived."""
 
 
 class CalibrationFileError(ConceptFusionError, ValueError):

@@ -25,6 +25,13 @@ class RGBDFrame:
     Shape:
         ``rgb`` (H, W, 3) uint8; ``depth`` (H, W) float32 metres; ``K`` (3, 3);
         ``cam_to_world`` (4, 4); ``segmentation`` (H, W) int32 or None.
+
+    Example::
+
+        from conceptfusion import RGBDFrame
+
+        frame = RGBDFrame(rgb=rgb_hw3, depth=depth_hw, K=K_33, cam_to_world=np.eye(4))
+        frame = RGBDFrame.from_observation(obs)   # an environment's observation dict, checked
     """
 
     rgb: np.ndarray

@@ -70,9 +70,11 @@ def _cmd_demo(args: argparse.Namespace) -> int:
 
 def _cmd_view(args: argparse.Namespace) -> int:
     from conceptfusion.errors import ConceptFusionError
+    from harness.runner.jobs import import_plugins
     from harness.viewer.server import ViewerServer
 
     try:
+        import_plugins(args.plugin)
         server = ViewerServer(args.map, encoder=args.encoder, host=args.host, port=args.port,
                               max_points=args.max_points)
     except (ConceptFusionError, ValueError, OSError) as exc:
@@ -131,6 +133,8 @@ def build_parser() -> argparse.ArgumentParser:
     view.add_argument("map", help="map file written by save_map (.npz)")
     view.add_argument("--encoder", default=DEFAULT_ENCODER,
                       help=f"the encoder the map was built with (default: {DEFAULT_ENCODER}); it answers the queries")
+    view.add_argument("--import", dest="plugin", action="append", metavar="MODULE",
+                      help="import MODULE first (repeatable): a module that registers the encoder with conceptfusion.register_encoder")
     view.add_argument("--port", type=int, default=0, help="TCP port (default: 0, a free one)")
     view.add_argument("--host", default="127.0.0.1", help="loopback address to bind: 127.0.0.1 (default), localhost or ::1")
     view.add_argument("--max-points", type=int, default=2_000_000,

@@ -442,7 +442,14 @@ def cmd_replay(args: argparse.Namespace) -> int:
 def cmd_list(args: argparse.Namespace) -> int:
     from agents.registry import AGENTS
     from conceptfusion.perception.registry import describe_encoders
+    from harness.runner.jobs import import_plugins
     from harness.runner.suites import SUITES
+
+    try:
+        import_plugins(args.plugin)
+    except ValueError as exc:
+        print(f"cfharness list: {exc}", file=sys.stderr)
+        return 2
 
     print("suites:")
     for s in SUITES.values():
@@ -488,8 +495,9 @@ def add_eval_commands(sub) -> None:
     run.add_argument("--agent", action="append", help="agent name or 'module:Class', repeatable (default: the suite's agents)")
     run.add_argument("--agent-option", action="append", metavar="KEY=VALUE", help="option for agents that accept it, repeatable")
     run.add_argument("--import", dest="plugin", action="append", metavar="MODULE",
-                     help="import MODULE first (repeatable): a module that registers agents by name with agents.registry.register_agent")
-    run.add_argument("--encoder", default=None, help="perception for map agents and map suites: embedded, embedded-v2, oracle, oracle-open (privileged), hf:..., onnx:DIR (default: each suite's own, the shipped tower of its world: embedded for v1 suites, embedded-v2 for v2 suites)")
+                     help="import MODULE first (repeatable): a module that registers agents (agents.register_agent) or encoders "
+                     "(conceptfusion.register_encoder) by name")
+    run.add_argument("--encoder", default=None, help="perception for map agents and map suites: embedded, embedded-v2, oracle, oracle-open (privileged), hf:..., onnx:DIR, or a name an --import module registered (default: each suite's own, the shipped tower of its world: embedded for v1 suites, embedded-v2 for v2 suites)")
     # numbers arrive as text: RunConfig checks them, with the same messages for Python callers
     run.add_argument("--limit", metavar="N", help="first N >= 1 episodes / scenes per suite")
     run.add_argument("--seed", metavar="N", help="episode seed >= 0 (default 0)")
@@ -558,4 +566,6 @@ def add_eval_commands(sub) -> None:
     rpl.set_defaults(func=cmd_replay)
 
     lst = sub.add_parser("list", help="list suites, agents and encoders")
+    lst.add_argument("--import", dest="plugin", action="append", metavar="MODULE",
+                     help="import MODULE first (repeatable): its registered agents and encoders are listed too")
     lst.set_defaults(func=cmd_list)

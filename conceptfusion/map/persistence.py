@@ -41,7 +41,15 @@ _EXPECTED = {
 
 
 def save_map(map_: PointFusionMap, path: str | os.PathLike) -> Path:
-    """Write a map to ``path`` (``.npz``) atomically; returns the path."""
+    """Write a map to ``path`` (``.npz``) atomically; returns the path.
+
+    Example::
+
+        from conceptfusion import load_map, save_map
+
+        save_map(mapper.map, "runs/mine/scene.map.npz")   # then: cfharness view runs/mine/scene.map.npz
+        same = load_map("runs/mine/scene.map.npz")
+    """
     header, arrays = map_.state_dict()
     header = {"format": FORMAT_NAME, "version": FORMAT_VERSION, **header}
     buf = io.BytesIO()
@@ -71,6 +79,13 @@ def load_map(path: str | os.PathLike) -> PointFusionMap:
     anything is allocated: :func:`~conceptfusion.array_files.check_npz_headers`),
     another format, a header field missing, unknown or of the wrong type, arrays of the wrong
     dtype or shape, NaN or infinite values, or feature rows that do not exist.
+
+    Example::
+
+        from conceptfusion import load_map
+
+        fmap = load_map("runs/demo/map.npz")
+        print(len(fmap), fmap.feature_dim)   # points, concept-vector dimension
     """
     p = Path(path)
     if not p.is_file():

@@ -1,6 +1,7 @@
 """Perception: from an RGB-D frame to pixel-aligned concept features.
 
-* encoders (:mod:`~.encoders` protocol, :mod:`~.registry` by spec string, the offline MiniLM
+* encoders (:mod:`~.encoders` protocol, :mod:`~.registry` by spec string with user encoders
+  registered there behind :mod:`~.checked`'s output checks, the offline MiniLM
   :mod:`~.text_tower`, the shipped embedded :mod:`~.image_tower`, CLIP via :mod:`~.clip_hf` and
   :mod:`~.clip_onnx`, :mod:`~.audio` and :mod:`~.speech` for spoken queries);
 * :mod:`~.masks` - class-agnostic mask proposers (RGB-D graph segmentation, optional SAM);

@@ -41,7 +41,7 @@ from conceptfusion.perception.oracle import (GROUNDED_ORACLE_DIM, GROUNDED_ORACL
                                              check_min_pixels, drop_small_segments)
 from conceptfusion.perception.oracle_floor import ORACLE_TEXT_ENCODER, load_oracle_floor
 from conceptfusion.perception.pipeline import frame_features
-from conceptfusion.perception.registry import DEFAULT_ENCODER, ENCODERS, make_encoder
+from conceptfusion.perception.registry import DEFAULT_ENCODER, ENCODERS, make_encoder, parse_encoder_spec
 
 __all__ = [
     "ORACLE",
@@ -519,12 +519,19 @@ class GroundedOracleFeaturizer:
         return grounding(drop_small_segments(frame.segmentation, self.min_pixels))
 
 
-@functools.lru_cache(maxsize=4)
 def load_encoder(spec: str):
-    """The encoder of a registry spec, loaded once per process (so map suites load it once).
+    """The encoder of a registry spec, loaded once per process (so map suites load it once); a
+    name registered anew (``register_encoder(..., replace=True)``) loads its new encoder.
 
     Raises what :func:`~conceptfusion.perception.registry.make_encoder` raises (nothing is cached then).
     """
+    name, _ = parse_encoder_spec(spec)
+    return _load_encoder(spec, ENCODERS[name])
+
+
+@functools.lru_cache(maxsize=4)
+def _load_encoder(spec: str, factory) -> object:
+    """:func:`make_encoder` cached by spec and the factory registered for it."""
     return make_encoder(spec)
 
 

@@ -13,6 +13,10 @@ A spec is ``NAME`` or ``NAME:ARGUMENT``:
   split (the default perception of the v2 suites).
 - ``audio-onnx:DIR``: an audio-language encoder in ONNX (``AudioEncoder``; :mod:`conceptfusion.perception.audio`).
 
+Your own encoder joins the same table with :func:`register_encoder` (from a module that
+``cfharness run --import`` imports, or from Python before making maps); its answers are checked
+at every call (:mod:`conceptfusion.perception.checked`).
+
 ``embedded`` is registered only where :mod:`conceptfusion.perception.image_tower` exists. Oracle
 features (:mod:`conceptfusion.perception.oracle`) read the simulator's segmentation and are not an
 encoder, so they are not listed here. Factories import their heavy dependencies only when
@@ -22,12 +26,15 @@ called, so importing this module is cheap.
 from __future__ import annotations
 
 import importlib.util
+import inspect
+import re
 from pathlib import Path
 from typing import Callable
 
 from conceptfusion.names import unknown_name_error
 
-__all__ = ["ENCODERS", "DEFAULT_ENCODER", "parse_encoder_spec", "make_encoder", "check_encoder_files", "describe_encoders"]
+__all__ = ["ENCODERS", "DEFAULT_ENCODER", "RESERVED_ENCODER_NAMES", "ENCODER_NAME_PATTERN", "register_encoder", "parse_encoder_spec",
+           "make_encoder", "check_encoder_files", "describe_encoders"]
 
 DEFAULT_ENCODER = "embedded"
 """The spec the harness uses when none is given: the shipped embedded tower (offline, CPU)."""
@@ -113,6 +120,102 @@ if importlib.util.find_spec("conceptfusion.perception.image_tower") is not None:
     ENCODERS["embedded-v2"] = _embedded_v2
 
 
+RESERVED_ENCODER_NAMES = frozenset({"oracle", "oracle-open"})
+"""Names a spec may start with that are not in :data:`ENCODERS` (privileged ground-truth
+perception, :mod:`conceptfusion.perception.featurizer`): no encoder can be registered under them."""
+
+ENCODER_NAME_PATTERN = re.compile(r"[a-z0-9][a-z0-9_.-]*")
+"""What a registered name looks like: lower case letters, digits, ``-``, ``_`` and ``.``, starting
+with a letter or digit. A spec is ``NAME`` or ``NAME:ARGUMENT``, its name matched in lower case
+with spaces stripped, so a name with ``:``, spaces or capitals could never be asked for."""
+
+
+def _check_encoder_name(name) -> str:
+    if not isinstance(name, str):
+        raise TypeError(f"register_encoder: name: expected a string such as 'my-clip', got {type(name).__name__} {name!r}")
+    if not ENCODER_NAME_PATTERN.fullmatch(name):
+        hint = f"; {name.strip().lower()!r} would do" if ENCODER_NAME_PATTERN.fullmatch(name.strip().lower()) else ""
+        if ":" in name:
+            hint = f"; ':' separates a spec's name from its argument (the factory receives {name.partition(':')[2]!r} as it)"
+        raise ValueError(f"register_encoder: name: expected lower case letters, digits, '-', '_' or '.' "
+                         f"(starting with a letter or digit), got {name!r}{hint}")
+    if name in RESERVED_ENCODER_NAMES:
+        raise ValueError(f"register_encoder: name {name!r} is reserved for privileged ground-truth perception "
+                         f"({', '.join(sorted(RESERVED_ENCODER_NAMES))}); choose another name")
+    return name
+
+
+def _takes_one_argument(factory: Callable) -> bool | None:
+    """Whether ``factory(arg)`` binds (None: its signature cannot be read, a builtin)."""
+    try:
+        inspect.signature(factory).bind(None)
+    except TypeError:
+        return False
+    except ValueError:
+        return None
+    return True
+
+
+def register_encoder(name: str, factory: Callable[[str | None], object], *, description: str = "",
+                     replace: bool = False) -> None:
+    """Add your own encoder to :data:`ENCODERS`, so that ``--encoder NAME`` (every suite, agent and
+    ``cfharness view``), :func:`make_encoder` and ``cfharness list`` know it.
+
+    ``factory(arg)`` builds the encoder, ``arg`` being the text after ``:`` in the spec (``None``
+    for a bare ``NAME``). What it builds needs ``dim`` (an int), ``encode_text(texts)`` and,
+    unless it embeds text only, ``encode_image(images)``, each returning one unit row of ``dim``
+    float32 numbers per input (:class:`~conceptfusion.perception.encoders.Encoder`). It is handed
+    out behind a checking wrapper (:func:`~conceptfusion.perception.checked.checked_encoder`): a
+    call answering another shape, a NaN or inf, or rows off the unit sphere raises
+    :class:`~conceptfusion.errors.EncoderOutputError` naming what was expected and what arrived.
+
+    Example::
+
+        from conceptfusion import register_encoder
+
+        register_encoder("mine", lambda arg: MyEncoder(checkpoint=arg), description="my CLIP fine-tune")
+        # cfharness run --import mymodule --encoder mine:/path/to/ckpt --suite rearrange
+
+    Args:
+        name: the spec name: lower case letters, digits, ``-``, ``_``, ``.`` (:data:`ENCODER_NAME_PATTERN`);
+            not ``oracle`` or ``oracle-open``.
+        factory: callable taking the spec's argument (``str`` or ``None``) and returning an encoder.
+        description: one line for ``cfharness list`` (default: the factory's docstring, else its name).
+        replace: allow replacing an encoder already registered under ``name`` (a built-in one too).
+
+    Raises:
+        TypeError: ``name`` or ``description`` is not a string; ``factory`` is not callable or
+            cannot be called with one argument.
+        ValueError: a name specs cannot ask for, a reserved name, or a name already registered
+            without ``replace=True``.
+    """
+    _check_encoder_name(name)
+    if not isinstance(description, str):
+        raise TypeError(f"register_encoder: description: expected a string, got {type(description).__name__}")
+    if not callable(factory):
+        raise TypeError(f"register_encoder({name!r}): factory: expected a callable taking the spec's argument "
+                        f"(str or None) and returning an encoder, got {type(factory).__name__} {factory!r:.80}")
+    if _takes_one_argument(factory) is False:
+        label = getattr(factory, "__qualname__", type(factory).__name__)
+        raise TypeError(f"register_encoder({name!r}): factory: expected a callable taking one argument (the text after "
+                        f"':' in the spec, or None), got {label}{inspect.signature(factory)}; wrap it: "
+                        f"lambda arg: {label}()")
+    if name in ENCODERS and not replace:
+        raise ValueError(f"register_encoder: encoder {name!r} is already registered; choose another name or pass replace=True")
+    from conceptfusion.perception.checked import checked_encoder
+
+    def build(arg: str | None):
+        return checked_encoder(name, factory(arg))
+
+    own_doc = factory.__doc__ if inspect.isfunction(factory) or inspect.isclass(factory) else None
+    doc = (description.strip() or (own_doc or "").strip()).splitlines()
+    label = f"{getattr(factory, '__module__', '?')}.{getattr(factory, '__qualname__', type(factory).__name__)}"
+    build.__doc__ = doc[0] if doc else f"user encoder ({label})"
+    build.__qualname__ = build.__name__ = f"registered_{name}"
+    ENCODERS[name] = build
+    _AVAILABLE.pop(name, None)  # a replaced built-in's file check is not the new encoder's
+
+
 def parse_encoder_spec(spec: str) -> tuple[str, str | None]:
     """Split ``"NAME:ARGUMENT"`` into ``(name, argument)``; ``argument`` is ``None`` without a colon.
 
@@ -134,6 +237,13 @@ def parse_encoder_spec(spec: str) -> tuple[str, str | None]:
 
 def make_encoder(spec: str):
     """Build the encoder a spec names (see the module docstring for the table).
+
+    Example::
+
+        from conceptfusion import make_encoder
+
+        enc = make_encoder("color")                  # or "embedded", "hf:openai/clip-vit-base-patch32"
+        text_nd = enc.encode_text(["red", "blue"])   # (2, enc.dim) float32, unit rows
 
     Raises:
         ValueError: unknown name (with the nearest valid names) or a missing/extra argument.
