@@ -14,24 +14,14 @@ May import: :mod:`conceptfusion` and :mod:`planners`; never :mod:`sim_envs` or :
 
 from __future__ import annotations
 
+from conceptfusion.names import lazy_exports
+
 __all__ = ["AgentSpec", "Option", "make_agent", "make_mapper", "register_agent"]
 
 
-def __getattr__(name: str):
-    """A public name of :data:`__all__`, imported from its module on first use (the registry
-    first, so the built-in agents are registered before a user's)."""
-    if name in ("AgentSpec", "make_agent", "register_agent"):
-        from agents import registry as module
-    elif name == "Option":
-        from agents import spec as module
-    elif name == "make_mapper":
-        from agents import builtin as module
-    else:
-        raise AttributeError(f"module 'agents' has no attribute {name!r} (public names: {', '.join(__all__)})")
-    value = getattr(module, name)
-    globals()[name] = value
-    return value
-
-
-def __dir__() -> list[str]:
-    return sorted(set(globals()) | set(__all__))
+__getattr__, __dir__ = lazy_exports(__name__, {
+    "AgentSpec": "agents.registry", "make_agent": "agents.registry", "register_agent": "agents.registry",
+    "Option": "agents.spec", "make_mapper": "agents.builtin",
+})
+"""Each public name of :data:`__all__` is imported from its module on first use (the registry's
+from the registry, so the built-in agents are registered before a user's)."""

@@ -21,7 +21,7 @@ from __future__ import annotations
 from typing import Any, Callable
 
 import agents.builtin  # noqa: F401  (registers the built-in agents)
-from agents.spec import AGENTS, Agent, AgentSpec, agent_names, coerce_kwargs, import_factory, register_agent, spec_summary
+from agents.spec import AGENTS, Agent, AgentSpec, agent_names, coerce_kwargs, import_factory, missing_agent_methods, register_agent, spec_summary
 from conceptfusion.names import unknown_name_error
 
 __all__ = [
@@ -68,7 +68,7 @@ def make_agent(name: str, **kwargs: Any) -> Agent:
         agent = factory(**spec.defaults() | coerce_kwargs(spec, kwargs))
     else:
         agent = factory(**kwargs)
-    missing = [a for a in ("reset", "act") if not callable(getattr(agent, a, None))]
+    missing = missing_agent_methods(agent)
     if missing or not hasattr(agent, "privileged"):
         raise TypeError(f"agent {name!r}: expected reset(), act() and a 'privileged' attribute; missing {missing or ['privileged']}")
     return agent

@@ -18,7 +18,7 @@ from conceptfusion.errors import AgentError, UnknownNameError
 from conceptfusion.names import unknown_name_error
 
 __all__ = [
-    "import_module_cleanly",
+    "import_module_cleanly", "missing_agent_methods",
     "Agent", "AgentSpec", "Option", "AGENTS", "register_agent", "agent_names", "coerce_kwargs", "check_option", "import_factory",
     "spec_summary",
 ]
@@ -225,6 +225,12 @@ def coerce_kwargs(spec: AgentSpec, kwargs: dict[str, Any]) -> dict[str, Any]:
     """Check keyword names against the spec, convert values to their declared types and check
     them (see :func:`check_option`)."""
     return {key: check_option(spec, key, value) for key, value in kwargs.items()}
+
+
+def missing_agent_methods(obj: Any) -> list[str]:
+    """Which of an agent's methods, ``reset`` and ``act``, ``obj`` (an agent or its class) lacks
+    or holds as something not callable."""
+    return [a for a in ("reset", "act") if not callable(getattr(obj, a, None))]
 
 
 def import_module_cleanly(module: str, where: str, expected: str):

@@ -22,23 +22,14 @@ harness module); heavy optional libraries (torch, transformers) only where they 
 
 from __future__ import annotations
 
+from conceptfusion.names import lazy_exports
+
 __all__ = ["RGBDFrame", "load_map", "make_encoder", "register_encoder", "save_map"]
 
 
-def __getattr__(name: str):
-    """A public name of :data:`__all__`, imported from its module on first use."""
-    if name in ("register_encoder", "make_encoder"):
-        from conceptfusion.perception import registry as module
-    elif name in ("load_map", "save_map"):
-        from conceptfusion.map import persistence as module
-    elif name == "RGBDFrame":
-        from conceptfusion import frames as module
-    else:
-        raise AttributeError(f"module 'conceptfusion' has no attribute {name!r} (public names: {', '.join(__all__)})")
-    value = getattr(module, name)
-    globals()[name] = value
-    return value
-
-
-def __dir__() -> list[str]:
-    return sorted(set(globals()) | set(__all__))
+__getattr__, __dir__ = lazy_exports(__name__, {
+    "register_encoder": "conceptfusion.perception.registry", "make_encoder": "conceptfusion.perception.registry",
+    "load_map": "conceptfusion.map.persistence", "save_map": "conceptfusion.map.persistence",
+    "RGBDFrame": "conceptfusion.frames",
+})
+"""Each public name of :data:`__all__` is imported from its module on first use."""

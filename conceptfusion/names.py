@@ -12,7 +12,7 @@ from typing import Callable, Iterable, Mapping, TypeVar
 
 from conceptfusion.errors import UnknownNameError
 
-__all__ = ["nearest_names", "did_you_mean", "unknown_name_error", "lookup"]
+__all__ = ["nearest_names", "did_you_mean", "unknown_name_error", "lookup", "lazy_exports"]
 
 V = TypeVar("V")
 
@@ -65,3 +65,24 @@ def lookup(table: Mapping[str, V], name: object, kind: str, **kwargs) -> V:
         return table[name]  # type: ignore[index]
     except (KeyError, TypeError):
         raise unknown_name_error(kind, name, table, **kwargs) from None
+
+
+def lazy_exports(package: str, sources: Mapping[str, str]) -> tuple[Callable[[str], object], Callable[[], list[str]]]:
+    """The module ``__getattr__`` and ``__dir__`` of a package whose public names (the keys of
+    ``sources``) are imported from their module (the values) on first use and kept in the
+    package, so that importing the package imports none of them. Any other name raises
+    ``AttributeError`` listing the public ones."""
+    import importlib
+    import sys
+
+    def __getattr__(name: str):
+        if name not in sources:
+            raise AttributeError(f"module {package!r} has no attribute {name!r} (public names: {', '.join(sorted(sources))})")
+        value = getattr(importlib.import_module(sources[name]), name)
+        setattr(sys.modules[package], name, value)
+        return value
+
+    def __dir__() -> list[str]:
+        return sorted(set(vars(sys.modules[package])) | set(sources))
+
+    return __getattr__, __dir__

@@ -17,7 +17,7 @@ import typing
 from typing import Any, Callable
 
 from agents.registry import AGENTS, agent_names, resolve_agent
-from agents.spec import Option, check_option
+from agents.spec import Option, check_option, missing_agent_methods
 from conceptfusion.errors import HarnessError
 from conceptfusion.names import did_you_mean, unknown_name_error
 from conceptfusion.perception.featurizer import PerceptionSpec
@@ -149,7 +149,7 @@ def check_agent_factory(agent: str, factory: Any, agent_kwargs: dict) -> None:
         except Exception:  # unresolvable annotations: nothing to learn from them
             made = None
     if inspect.isclass(made):
-        missing = [a for a in ("reset", "act") if not callable(getattr(made, a, None))]
+        missing = missing_agent_methods(made)
         if missing:
             where = "" if made is factory else f", whose return annotation says it builds {_describe(made)}"
             raise HarnessError(f"--agent {agent}: expected {expected}, got {_describe(factory)}{where} without "
