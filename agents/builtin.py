@@ -66,13 +66,17 @@ def make_mapper(
     Raises:
         UnknownNameError: unknown encoder or proposer name (naming the nearest valid ones).
     """
+    provenance = {"setting": setting}
     if isinstance(perception, (str, PerceptionSpec)):
         spec = PerceptionSpec.parse(perception, proposer=proposer) if isinstance(perception, str) else perception
         featurizer = make_featurizer(spec)
+        provenance.update(encoder=spec.encoder, proposer=spec.proposer)
     else:
         featurizer = perception
-    return ConceptMapper(featurizer, MapperConfig(persistent=persistent, semantic_views=semantic_views,
-                                                  min_score=score_floor_for(featurizer, setting)))
+    mapper = ConceptMapper(featurizer, MapperConfig(persistent=persistent, semantic_views=semantic_views,
+                                                    min_score=score_floor_for(featurizer, setting)))
+    mapper.provenance = provenance
+    return mapper
 
 
 PUSHER_TWIN_VIEWS = 64

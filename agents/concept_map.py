@@ -150,6 +150,14 @@ class ConceptMapper:
         self._answers: dict[str, QueryResult] = {}
         self._views: deque[PointFusionMap] = deque(maxlen=max(1, config.semantic_views))
         """Single-frame maps of the last ``semantic_views`` frames (the twin's semantics; empty when fused)."""
+        self.provenance: dict = {}
+        """How the mapper was made, for a saved map's ``meta`` (see
+        :data:`conceptfusion.map.persistence.META_KEYS`): ``encoder``, ``proposer``, ``setting``
+        when :func:`agents.builtin.make_mapper` built it; empty otherwise."""
+        self.lookup_used: dict = {"lookup": "plain"}
+        """How callers asked the map: ``{"lookup": "plain"}`` until :meth:`locate_present` is first
+        called, then ``{"lookup": "present", "name_only": ...}`` (a saved map records it, and the
+        viewer asks the same way)."""
 
     @property
     def privileged(self) -> bool:
@@ -385,6 +393,7 @@ class ConceptMapper:
         ``"identified"``, ``"under_floor"`` or ``"name_only"``, with ``extras["passed_over"]`` the
         reasons of the answers passed over. :attr:`answers` records the answer returned, not the
         last one asked on the way."""
+        self.lookup_used = {"lookup": "present", "name_only": bool(name_only)}
         answer = self.locate(text)
         if not answer.found:
             reasons = [answer.reason]

@@ -80,7 +80,7 @@ def _cmd_view(args: argparse.Namespace) -> int:
     except (ConceptFusionError, ValueError, OSError) as exc:
         print(f"cfharness view: {exc}", file=sys.stderr)
         return 2
-    print(f"Serving {args.map} at {server.url} (encoder {args.encoder}); Ctrl-C stops.", flush=True)
+    print(f"Serving {args.map} at {server.url} (encoder {server.encoder_name}); Ctrl-C stops.", flush=True)
     if args.open:
         import webbrowser
 
@@ -131,8 +131,9 @@ def build_parser() -> argparse.ArgumentParser:
         formatter_class=argparse.RawDescriptionHelpFormatter,
     )
     view.add_argument("map", help="map file written by save_map (.npz)")
-    view.add_argument("--encoder", default=DEFAULT_ENCODER,
-                      help=f"the encoder the map was built with (default: {DEFAULT_ENCODER}); it answers the queries")
+    view.add_argument("--encoder", default=None,
+                      help="the encoder that answers the queries (default: the one the map file records, as the replays' "
+                      f"maps and the demo's do; {DEFAULT_ENCODER} for a map that records none)")
     view.add_argument("--import", dest="plugin", action="append", metavar="MODULE",
                       help="import MODULE first (repeatable): a module that registers the encoder with conceptfusion.register_encoder")
     view.add_argument("--port", type=int, default=0, help="TCP port (default: 0, a free one)")

@@ -2,7 +2,10 @@
 
 A map file is an uncompressed ``.npz`` archive holding a JSON header (format name, format
 version, parameters, sizes) and the map's arrays: positions, normals, colours, confidences
-and the feature store, so fusion continues exactly where it stopped after a reload. Files are
+and the feature store, so fusion continues exactly where it stopped after a reload. Since
+format version 2 the header may also say how the map was made and is meant to be asked
+(``meta``: the encoder spec, the proposer, the score floor, the lookup its agent used), which
+:func:`read_map_meta` reads without loading the arrays; the viewer opens a map with them. Files are
 written atomically. A file from a newer format version is refused with
 :class:`~conceptfusion.errors.MapVersionError`; a truncated, corrupt or foreign file with
 :class:`~conceptfusion.errors.MapFormatError`.
@@ -24,10 +27,24 @@ from conceptfusion.errors import MapFormatError, MapVersionError, MissingFileErr
 from conceptfusion.map.fusion import PointFusionMap
 from conceptfusion.io_utils import atomic_write_bytes
 
-__all__ = ["FORMAT_NAME", "FORMAT_VERSION", "save_map", "load_map", "export_ply", "heatmap_colors"]
+__all__ = ["FORMAT_NAME", "FORMAT_VERSION", "META_KEYS", "save_map", "load_map", "read_map_meta", "export_ply",
+           "heatmap_colors"]
 
 FORMAT_NAME = "conceptfusion-map"
-FORMAT_VERSION = 1
+FORMAT_VERSION = 2
+"""Version 2 added the optional ``meta`` header field; version 1 files read as before."""
+
+META_KEYS = {
+    "encoder": str, "proposer": str, "setting": str, "min_score": (int, float, type(None)), "lookup": str,
+    "name_only": bool, "agent": str,
+}
+"""What a map file's ``meta`` may say, and its type: ``encoder`` the perception spec the map was
+built with (``"embedded-v2"``, ``"onnx:DIR"`` ...), ``proposer`` the mask proposer, ``setting``
+the score-floor setting (``"tabletop"``, ``"household"``, ``"search"``), ``min_score`` the floor
+itself (None: none), ``lookup`` how its agent asked it (``"plain"``: :meth:`ConceptMapper.locate`;
+``"present"``: :meth:`ConceptMapper.locate_present`, which presumes a named object is there),
+``name_only`` the name-only last resort of that lookup, ``agent`` the agent's name."""
+LOOKUPS = ("plain", "present")
 
 _EXPECTED = {
     # name: (dtype kind, ndim, rows are points?)
@@ -40,8 +57,11 @@ _EXPECTED = {
 }
 
 
-def save_map(map_: PointFusionMap, path: str | os.PathLike) -> Path:
+def save_map(map_: PointFusionMap, path: str | os.PathLike, *, meta: dict | None = None) -> Path:
     """Write a map to ``path`` (``.npz``) atomically; returns the path.
+
+    ``meta``: how the map was made and is meant to be asked (keys of :data:`META_KEYS`, each
+    optional); the viewer opens the map with them, so its answers are the ones the map's agent saw.
 
     Example::
 
@@ -52,6 +72,8 @@ def save_map(map_: PointFusionMap, path: str | os.PathLike) -> Path:
     """
     header, arrays = map_.state_dict()
     header = {"format": FORMAT_NAME, "version": FORMAT_VERSION, **header}
+    if meta:
+        header["meta"] = _check_meta(meta, "save_map: meta")
     buf = io.BytesIO()
     np.savez(buf, header=np.frombuffer(json.dumps(header).encode("utf-8"), np.uint8), **arrays)
     return atomic_write_bytes(path, buf.getvalue())
@@ -62,6 +84,24 @@ _NPY_MAGIC = b"\x93NUMPY"
 _HEADER_KEYS = {"format": str, "version": int, "feature_dim": int, "num_points": int, "frames_integrated": int, "config": dict}
 _CONFIG_KEYS = ("dist_th", "angle_th_deg", "sigma", "max_depth", "slots")
 _GEO_COLS = 10  # position (3), normal (3), colour (3), confidence (1); see PointFusionMap.state_dict
+
+
+def _check_meta(meta, where: str) -> dict:
+    """``meta`` when it is a dict of :data:`META_KEYS` with values of their types; ``ValueError``
+    naming the key otherwise."""
+    if not isinstance(meta, dict):
+        raise ValueError(f"{where}: expected a dict, got {type(meta).__name__}")
+    unknown = sorted(set(meta) - set(META_KEYS))
+    if unknown:
+        raise ValueError(f"{where}: unknown key(s) {unknown}; expected some of {sorted(META_KEYS)}")
+    for key, value in meta.items():
+        kind = META_KEYS[key]
+        if isinstance(value, bool) and kind is not bool or not isinstance(value, kind):
+            names = " or ".join(k.__name__ for k in (kind if isinstance(kind, tuple) else (kind,)))
+            raise ValueError(f"{where}: {key!r} expected {names}, got {value!r}")
+    if meta.get("lookup") is not None and meta["lookup"] not in LOOKUPS:
+        raise ValueError(f"{where}: 'lookup' expected one of {list(LOOKUPS)}, got {meta['lookup']!r}")
+    return dict(meta)
 
 
 def _is_int(v) -> bool:
@@ -88,18 +128,7 @@ def load_map(path: str | os.PathLike) -> PointFusionMap:
         print(len(fmap), fmap.feature_dim)   # points, concept-vector dimension
     """
     p = Path(path)
-    if not p.is_file():
-        if p.exists():
-            raise MapFormatError(f"{p}: expected a map file, got a {'folder' if p.is_dir() else 'special file'}")
-        raise MissingFileError(f"map file not found: {p}")
-    with open(p, "rb") as f:
-        head = f.read(8)
-    if head.startswith(_NPY_MAGIC):
-        raise MapFormatError(f"{p}: not a readable map file: this is a single-array .npy file; a map is an .npz "
-                             "archive written by save_map")
-    if not head.startswith(_ZIP_MAGIC):
-        raise MapFormatError(f"{p}: not a readable map file: expected an .npz archive written by save_map, but the "
-                             f"file starts with {head!r}" if head else f"{p}: not a readable map file: the file is empty")
+    _check_file(p)
     try:
         check_npz_headers(p, MapFormatError, what="map file")  # before np.load allocates what headers claim
         with np.load(p, allow_pickle=False) as z:
@@ -116,6 +145,33 @@ def load_map(path: str | os.PathLike) -> PointFusionMap:
         raise MapFormatError(f"{p}: not a readable map file (truncated or corrupt?): {exc}") from exc
     except (zipfile.BadZipFile, EOFError, OSError, KeyError) as exc:
         raise MapFormatError(f"{p}: not a readable map file (truncated or corrupt?): {exc}") from exc
+    header = _parse_header(p, raw)
+    _validate_header(p, header)
+    _validate(p, header, arrays)
+    try:
+        return PointFusionMap.from_state_dict(header, arrays)
+    except (TypeError, ValueError) as exc:  # a safety net: the checks above should have caught it
+        raise MapFormatError(f"{p}: not a valid map: {exc}") from exc
+
+
+def _check_file(p: Path) -> None:
+    """Refuse what cannot be a map file: missing, a folder, a ``.npy`` array, not a zip archive."""
+    if not p.is_file():
+        if p.exists():
+            raise MapFormatError(f"{p}: expected a map file, got a {'folder' if p.is_dir() else 'special file'}")
+        raise MissingFileError(f"map file not found: {p}")
+    with open(p, "rb") as f:
+        head = f.read(8)
+    if head.startswith(_NPY_MAGIC):
+        raise MapFormatError(f"{p}: not a readable map file: this is a single-array .npy file; a map is an .npz "
+                             "archive written by save_map")
+    if not head.startswith(_ZIP_MAGIC):
+        raise MapFormatError(f"{p}: not a readable map file: expected an .npz archive written by save_map, but the "
+                             f"file starts with {head!r}" if head else f"{p}: not a readable map file: the file is empty")
+
+
+def _parse_header(p: Path, raw: np.ndarray) -> dict:
+    """The JSON header of a map file, its format and version checked (not yet its fields)."""
     if raw.dtype != np.uint8 or raw.ndim != 1:
         raise MapFormatError(f"{p}: header: expected JSON text as a 1-D uint8 array, got {raw.dtype}, shape {raw.shape}")
     try:
@@ -133,12 +189,40 @@ def load_map(path: str | os.PathLike) -> PointFusionMap:
             f"{p}: written by format version {version}; this code reads versions up to {FORMAT_VERSION} "
             "(upgrade the package to read it)"
         )
-    _validate_header(p, header)
-    _validate(p, header, arrays)
+    return header
+
+
+def read_map_meta(path: str | os.PathLike) -> dict:
+    """The ``meta`` of a map file (see :data:`META_KEYS`): ``{}`` for a file that records none
+    (format version 1). Reads the header only, not the arrays.
+
+    Example::
+
+        from conceptfusion.map.persistence import read_map_meta
+
+        read_map_meta("runs/main/replays/search__map-navigator__search-v2-0003__s0.map.npz")
+        # {'encoder': 'embedded-v2', 'proposer': 'rgbd', 'setting': 'search', 'lookup': 'plain', ...}
+
+    Raises:
+        MissingFileError, MapFormatError, MapVersionError: as :func:`load_map`, for the header.
+    """
+    p = Path(path)
+    _check_file(p)
     try:
-        return PointFusionMap.from_state_dict(header, arrays)
-    except (TypeError, ValueError) as exc:  # a safety net: the checks above should have caught it
-        raise MapFormatError(f"{p}: not a valid map: {exc}") from exc
+        with zipfile.ZipFile(p) as z:
+            if "header.npy" not in z.namelist():
+                raise MapFormatError(f"{p}: expected a '{FORMAT_NAME}' file with a header, found entries {z.namelist()[:8]}")
+            with z.open("header.npy") as f:
+                raw = np.lib.format.read_array(f, allow_pickle=False)
+    except MapFormatError:
+        raise
+    except (zipfile.BadZipFile, EOFError, OSError, ValueError) as exc:
+        raise MapFormatError(f"{p}: not a readable map file (truncated or corrupt?): {exc}") from exc
+    header = _parse_header(p, raw)
+    try:
+        return _check_meta(header.get("meta", {}), "header field 'meta'")
+    except ValueError as exc:
+        raise MapFormatError(f"{p}: {exc}") from None
 
 
 def _refuse_constant(name: str):
@@ -152,9 +236,16 @@ def _validate_header(p: Path, header: dict) -> None:
         v = header[key]
         if not isinstance(v, kind) or (kind is int and isinstance(v, bool)):
             raise MapFormatError(f"{p}: header field {key!r}: expected {kind.__name__}, got {v!r}")
-    unknown = sorted(set(header) - set(_HEADER_KEYS))
+    optional = {"meta"} if header["version"] >= 2 else set()
+    unknown = sorted(set(header) - set(_HEADER_KEYS) - optional)
     if unknown:
-        raise MapFormatError(f"{p}: header: unknown field(s) {unknown}; expected {sorted(_HEADER_KEYS)}")
+        raise MapFormatError(f"{p}: header: unknown field(s) {unknown}; expected {sorted(_HEADER_KEYS)}"
+                             + (" and optionally 'meta'" if optional else ""))
+    if "meta" in header:
+        try:
+            _check_meta(header["meta"], "header field 'meta'")
+        except ValueError as exc:
+            raise MapFormatError(f"{p}: {exc}") from None
     for key in ("num_points", "frames_integrated"):
         if header[key] < 0:
             raise MapFormatError(f"{p}: header field {key!r}: expected >= 0, got {header[key]}")

@@ -79,5 +79,5 @@ def run_demo(config: DemoConfig = DemoConfig(), out_dir: Path | None = None) -> 
     for text in config.queries:
         box = next((b for b in boxes if b.name.startswith(text + " ")), None)
         truths[text] = None if box is None else (box.name, box.center, points_on_box(points, box))
-    outcomes = score_queries(fmap, encoder, truths, out_dir)
+    outcomes = score_queries(fmap, encoder, truths, out_dir, config)
     return {"encoder": config.encoder, **demo_summary("boxes", fmap, config.frames, t_features, t_fuse, outcomes)}

@@ -62,13 +62,16 @@ class QueryOutcome:
         return self.found and self.median_error_m <= max_error_m
 
 
-def score_queries(fmap: PointFusionMap, encoder, truths: dict, out_dir: Path | None = None) -> list[QueryOutcome]:
+def score_queries(fmap: PointFusionMap, encoder, truths: dict, out_dir: Path | None = None,
+                  config: "DemoConfig | None" = None) -> list[QueryOutcome]:
     """Query the map for every name in ``truths`` and score each answer; write the map and PLY
     heatmaps to ``out_dir`` when given.
 
     Args:
         truths: query text -> ``(name, centre (3,), gt_mask (N,) bool)`` of the object it
             names, or ``None`` for a query that names nothing in the scene (must not be found).
+        config: the demo's settings; the map file records its encoder and proposer, so that
+            ``cfharness view`` asks it with them.
     """
     negatives = encoder.encode_text(list(NEGATIVE_PHRASES))
     outcomes = []
@@ -86,7 +89,10 @@ def score_queries(fmap: PointFusionMap, encoder, truths: dict, out_dir: Path | N
         if out_dir is not None:
             export_ply(fmap, Path(out_dir) / f"query_{text.replace(' ', '_')}.ply", values_n=result.relative_n)
     if out_dir is not None:
-        save_map(fmap, Path(out_dir) / "map.npz")
+        meta = {"setting": "tabletop", "min_score": None, "lookup": "plain"}  # as asked here: no score floor
+        if config is not None:
+            meta.update(encoder=config.encoder, proposer=config.proposer)
+        save_map(fmap, Path(out_dir) / "map.npz", meta=meta)
         export_ply(fmap, Path(out_dir) / "map_rgb.ply")
     return outcomes
 

@@ -91,4 +91,4 @@ def run_tabletop_demo(config: DemoConfig, featurizer, out_dir: Path | None = Non
         obj = next((o for o in scene.objects if o.name == text), None)
         centre = None if obj is None else np.asarray(obj.position, float) + np.array([0.0, 0.0, obj.size[2] / 2])
         truths[text] = None if obj is None else (obj.name, centre, points_on_object(points, obj))
-    return demo_summary(scene.id, fmap, config.frames, t_features, t_fuse, score_queries(fmap, featurizer.encoder, truths, out_dir))
+    return demo_summary(scene.id, fmap, config.frames, t_features, t_fuse, score_queries(fmap, featurizer.encoder, truths, out_dir, config))

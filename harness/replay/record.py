@@ -521,8 +521,24 @@ class EpisodeRecorder:
             info = {"thinned_from": thinned.original_points, "voxel_m": thinned.voxel}
             the_map = thinned.map
         out = self.path.with_name(self.path.name[: -len(".npz")] + MAP_SUFFIX)
-        self.written.append(save_map(the_map, out))
+        self.written.append(save_map(the_map, out, meta=map_meta(mapper, self.header.get("agent"))))
         return {"file": out.name, "points": int(len(the_map.points)), "bytes": int(out.stat().st_size), **info}
+
+
+def map_meta(mapper, agent: str | None = None) -> dict:
+    """What a saved map records of how it was made and asked (its ``meta``, see
+    :data:`conceptfusion.map.persistence.META_KEYS`): the mapper's encoder, proposer and
+    score-floor setting (:attr:`~agents.concept_map.ConceptMapper.provenance`), its floor, the
+    lookup its agent used (:attr:`~agents.concept_map.ConceptMapper.lookup_used`) and the agent."""
+    meta = {k: v for k, v in (getattr(mapper, "provenance", None) or {}).items() if k in ("encoder", "proposer", "setting")}
+    config = getattr(mapper, "config", None)
+    if config is not None and hasattr(config, "min_score"):
+        floor = config.min_score
+        meta["min_score"] = None if floor is None else float(floor)
+    meta.update(getattr(mapper, "lookup_used", None) or {})
+    if isinstance(agent, str) and agent:
+        meta["agent"] = agent
+    return meta
 
 
 def _jsonable(value):

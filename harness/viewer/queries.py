@@ -26,10 +26,10 @@ import numpy as np
 
 from conceptfusion.errors import HarnessError
 from conceptfusion.map.fusion import PointFusionMap
-from conceptfusion.map.persistence import heatmap_colors, load_map
+from conceptfusion.map.persistence import LOOKUPS, heatmap_colors, load_map
 from conceptfusion.map.query import QueryResult, click_query_vector, locate
 
-__all__ = ["BadQueryError", "MapQueries", "DEFAULT_MAX_POINTS", "MAX_IMAGE_BYTES", "decode_image"]
+__all__ = ["BadQueryError", "MapQueries", "DEFAULT_MAX_POINTS", "MAX_IMAGE_BYTES", "check_lookup", "decode_image"]
 
 DEFAULT_MAX_POINTS = 2_000_000
 """Maps with more points are thinned (a fixed random subset) before they go to the browser."""
@@ -86,6 +86,13 @@ def _region_json(region) -> dict:
     }
 
 
+def check_lookup(lookup) -> str:
+    """``lookup`` when it is one of :data:`~conceptfusion.map.persistence.LOOKUPS`; BadQueryError otherwise."""
+    if lookup not in LOOKUPS:
+        raise BadQueryError(f"lookup: expected one of {', '.join(LOOKUPS)}, got {lookup!r}")
+    return lookup
+
+
 class _ScoredMap:
     """A read-only view of a loaded map for :func:`~conceptfusion.map.query.locate`: its positions
     kept (the map's ``points`` property copies), and the per-point scores of recent query vectors
@@ -130,15 +137,23 @@ class MapQueries:
         max_points: points sent to the browser at most (a fixed random subset beyond). They go
             in a fixed random order (:attr:`sent_n`), so that the page can draw any prefix as a
             uniform sample while the view moves.
+        lookup: how text queries are asked by default: ``"plain"``
+            (:meth:`~agents.concept_map.ConceptMapper.locate`) or ``"present"``
+            (:meth:`~agents.concept_map.ConceptMapper.locate_present`, which presumes the named
+            object is there, as an agent told to find it does); the map file records its agent's.
+        name_only: the name-only last resort of the ``"present"`` lookup.
+        notes: lines for the page (e.g. the encoder is not the one the map records).
 
     Raises:
         MissingFileError, MapFormatError: from loading the map.
         HarnessError: the encoder's dimension differs from the map's.
     """
 
-    def __init__(self, map_path: str | os.PathLike, mapper, *, encoder_name: str, max_points: int = DEFAULT_MAX_POINTS):
+    def __init__(self, map_path: str | os.PathLike, mapper, *, encoder_name: str, max_points: int = DEFAULT_MAX_POINTS,
+                 lookup: str = "plain", name_only: bool = True, notes: tuple[str, ...] = ()):
         if isinstance(max_points, bool) or not isinstance(max_points, int) or max_points < 1:
             raise ValueError(f"max_points: expected an int >= 1, got {max_points!r}")
+        self.lookup, self.name_only, self.notes = check_lookup(lookup), bool(name_only), tuple(notes)
         self.path = Path(map_path)
         fmap: PointFusionMap = load_map(self.path)
         if fmap.feature_dim != mapper.featurizer.dim:
@@ -174,7 +189,7 @@ class MapQueries:
             "feature_dim": int(self.map.feature_dim), "bounds_min": lo, "bounds_max": hi,
             "focus_min": focus[0], "focus_max": focus[1],
             "encoder": self.encoder_name, "image_queries": hasattr(self.mapper.encoder, "encode_image"),
-            "score_floor": self.mapper.config.min_score,
+            "score_floor": self.mapper.config.min_score, "lookup": self.lookup, "notes": list(self.notes),
             "palette": heatmap_colors(np.linspace(0.0, 1.0, 255)).tolist(),
         }
 
@@ -208,15 +223,21 @@ class MapQueries:
         return locate(self._view, vec, self.mapper.negatives(), relevancy_threshold=c.relevancy_threshold,
                       voxel_size=c.voxel_size, min_points=c.min_points)
 
-    def text(self, text) -> dict:
-        """Answer a text query (as an agent's mapper would)."""
+    def text(self, text, lookup: str | None = None) -> dict:
+        """Answer a text query as the map's agent would: ``lookup`` ``"plain"`` or ``"present"``
+        (None: the map's own, :attr:`lookup`). A presumed answer says how (``presumed``:
+        ``"under_floor"`` or ``"name_only"``), as the agent's record of it does."""
         t0 = time.perf_counter()
         if not isinstance(text, str) or not text.strip():
             raise BadQueryError(f"text query: expected a description such as 'red mug', got {text!r}")
+        lookup = self.lookup if lookup is None else check_lookup(lookup)
         text = text.strip()
         with self._lock:
-            res = self.mapper.locate(text)
-            return self._answer("text", text, res, t0)
+            if lookup == "present":
+                res = self.mapper.locate_present(text, name_only=self.name_only)
+            else:
+                res = self.mapper.locate(text)
+            return self._answer("text", text, res, t0, lookup=lookup, presumed=res.extras.get("presumed"))
 
     def click(self, index) -> dict:
         """Answer the paper's click query at sent point ``index`` (what the page picked)."""

@@ -25,25 +25,29 @@ A bad query is answered with status 400 and ``{"ok": false, "error": "..."}``; t
 
 from __future__ import annotations
 
+import dataclasses
 import json
 import logging
 import os
 import threading
 import zipfile
 from collections import OrderedDict
+from dataclasses import dataclass
 from http.server import BaseHTTPRequestHandler, ThreadingHTTPServer
 from pathlib import Path
 from urllib.parse import parse_qs, quote, unquote, urlsplit
 
 from agents.builtin import make_mapper
-from conceptfusion.errors import ConceptFusionError, HarnessError, MapFormatError, MissingFileError
-from conceptfusion.map.persistence import FORMAT_NAME as MAP_FORMAT
+from conceptfusion.errors import ConceptFusionError, HarnessError, MapFormatError, MissingFileError, UnknownNameError
+from conceptfusion.map.persistence import FORMAT_NAME as MAP_FORMAT, read_map_meta
+from conceptfusion.perception.registry import DEFAULT_ENCODER, ENCODERS
 from conceptfusion.strict_json import loads_strict
-from conceptfusion.perception.featurizer import ORACLE_OPEN, encoder_name
+from conceptfusion.perception.featurizer import ORACLE_ENCODERS, ORACLE_OPEN, encoder_name
 from harness.report.paths import MAP_SUFFIX, VIDEO_SUFFIXES
 from harness.viewer.queries import DEFAULT_MAX_POINTS, MAX_IMAGE_BYTES, BadQueryError, MapQueries
 
-__all__ = ["LOOPBACK_HOSTS", "STATIC_DIR", "ViewerServer", "check_loopback", "replay_video", "resolve_inside"]
+__all__ = ["LOOPBACK_HOSTS", "STATIC_DIR", "MapPerception", "ViewerServer", "check_loopback", "perception_for",
+           "replay_video", "resolve_inside"]
 
 LOOPBACK_HOSTS = ("127.0.0.1", "localhost", "::1")
 """Hosts the viewer may bind to."""
@@ -102,7 +106,9 @@ class ViewerServer:
     Args:
         map_path: the map file (``.npz`` from :func:`~conceptfusion.map.persistence.save_map`).
         encoder: perception spec whose text (and image) tower answers queries; it must be the
-            one the map was built with (``embedded``, ``color``, ``oracle``, ``hf:...``).
+            one the map was built with (``embedded``, ``color``, ``oracle``, ``hf:...``). None
+            (the default): the encoder each map file records (:func:`perception_for`), else
+            :data:`~conceptfusion.perception.registry.DEFAULT_ENCODER`.
         host: a loopback address (see :data:`LOOPBACK_HOSTS`).
         port: TCP port; 0 picks a free one (see :attr:`url`).
         max_points: points sent to the browser at most.
@@ -113,7 +119,7 @@ class ViewerServer:
         UnknownNameError: an unknown encoder name.
     """
 
-    def __init__(self, map_path: str | os.PathLike, *, encoder: str = "embedded", host: str = "127.0.0.1",
+    def __init__(self, map_path: str | os.PathLike, *, encoder: str | None = None, host: str = "127.0.0.1",
                  port: int = 0, max_points: int = DEFAULT_MAX_POINTS) -> None:
         check_loopback(host)
         if isinstance(encoder, str) and encoder_name(encoder) == ORACLE_OPEN:
@@ -127,11 +133,10 @@ class ViewerServer:
         if not path.is_file():
             raise MapFormatError(f"{path}: expected a map file (.npz), got a folder")
         self.root, self.default_map = path.resolve().parent, path.resolve().name
-        self.encoder_name, self.max_points = encoder, max_points
-        self._mapper_factory = lambda: make_mapper(encoder)
+        self.encoder, self.max_points = encoder, max_points
         self._maps: OrderedDict[str, MapQueries] = OrderedDict()
         self._maps_lock = threading.Lock()
-        self.open_map(self.default_map)  # fails here, before a socket opens, on a bad map or encoder
+        self.encoder_name = self.open_map(self.default_map).encoder_name  # fails here, before a socket opens, on a bad map or encoder
         server_cls = type("_Server", (ThreadingHTTPServer,), {"address_family": _family(host), "daemon_threads": True})
         self.httpd = server_cls((host, port), _handler(self))
         self.host, self.port = host, int(self.httpd.server_address[1])
@@ -157,8 +162,9 @@ class ViewerServer:
             if key in self._maps:
                 self._maps.move_to_end(key)
                 return self._maps[key]
-            queries = MapQueries(target, self._mapper_factory(), encoder_name=self.encoder_name,
-                                 max_points=self.max_points)
+            how = perception_for(target, self.encoder)
+            queries = MapQueries(target, how.mapper(), encoder_name=how.encoder, max_points=self.max_points,
+                                 lookup=how.lookup, name_only=how.name_only, notes=how.notes)
             self._maps[key] = queries
             while len(self._maps) > _OPEN_MAPS:
                 self._maps.popitem(last=False)
@@ -191,6 +197,65 @@ class ViewerServer:
 
     def __exit__(self, *exc) -> None:
         self.close()
+
+
+@dataclass(frozen=True)
+class MapPerception:
+    """How the viewer asks one map: the encoder and its score floor, the lookup, and notes for the
+    page when these are not the ones the map file records."""
+
+    encoder: str
+    proposer: str = "rgbd"
+    setting: str = "tabletop"
+    min_score: tuple[float | None, ...] = ()
+    """``(floor,)``: the floor the map records (None: no floor), applied when the map's own encoder
+    answers; empty: the encoder's floor for :attr:`setting`."""
+    lookup: str = "plain"
+    name_only: bool = True
+    notes: tuple[str, ...] = ()
+
+    def mapper(self):
+        """A :class:`~agents.concept_map.ConceptMapper` that asks as the map's agent did."""
+        mapper = make_mapper(self.encoder, self.proposer, setting=self.setting)
+        if self.min_score:
+            mapper.config = dataclasses.replace(mapper.config, min_score=self.min_score[0])
+        return mapper
+
+
+def perception_for(map_path: str | os.PathLike, encoder: str | None = None) -> MapPerception:
+    """How to ask the map at ``map_path``: with the encoder, floor and lookup its file records
+    (:func:`~conceptfusion.map.persistence.read_map_meta`, written with the replays' maps), so the
+    viewer's answers are the ones its agent saw; ``encoder`` (``--encoder``) overrides the
+    recorded encoder, with a note when they differ. A map that records none is asked with
+    :data:`~conceptfusion.perception.registry.DEFAULT_ENCODER` and a note saying so.
+
+    Raises:
+        UnknownNameError: the encoder (given or recorded) is not registered in this install; the
+            message says where the name came from and how to add it (``--import``).
+        MissingFileError, MapFormatError: the map's header cannot be read.
+    """
+    path = Path(map_path)
+    meta = read_map_meta(path)
+    recorded = meta.get("encoder")
+    notes = []
+    if encoder is None:
+        encoder = recorded or DEFAULT_ENCODER
+        if recorded is None:
+            notes.append(f"the map file does not record its encoder; asked with {DEFAULT_ENCODER!r} "
+                         "(pass --encoder when it was built with another)")
+    elif recorded is not None and encoder != recorded:
+        notes.append(f"asked with --encoder {encoder!r}, but the map was built with {recorded!r}: "
+                     "answers may differ from its agent's")
+    if encoder_name(encoder) not in ENCODERS and encoder_name(encoder) not in ORACLE_ENCODERS:
+        source = "the map file records" if encoder == recorded else "--encoder names"
+        raise UnknownNameError(f"{path.name}: {source} the encoder {encoder!r}, which this install does not have "
+                               f"(registered: {', '.join(sorted(ENCODERS))}): --import the module that registers it "
+                               "(conceptfusion.register_encoder), or pass --encoder")
+    own = encoder == recorded
+    return MapPerception(
+        encoder=encoder, proposer=meta.get("proposer", "rgbd") if own else "rgbd",
+        setting=meta.get("setting", "tabletop"), min_score=(meta["min_score"],) if own and "min_score" in meta else (),
+        lookup=meta.get("lookup", "plain"), name_only=meta.get("name_only", True), notes=tuple(notes))
 
 
 def _is_map_file(path: Path) -> bool:
@@ -334,7 +399,7 @@ def _handler(viewer: ViewerServer):
             if p == "/api/query":
                 body = self._json_body()
                 q = viewer.open_map(self._query.get("map"))
-                return self._json(200, q.text(body.get("text")))
+                return self._json(200, q.text(body.get("text"), lookup=body.get("lookup")))
             if p == "/api/click":
                 body = self._json_body()
                 q = viewer.open_map(self._query.get("map"))

@@ -10,7 +10,7 @@ from conceptfusion.cameras import intrinsics_from_fovy
 from conceptfusion.errors import MapFormatError, MapVersionError
 from conceptfusion.perception.features import PixelFeatures
 from conceptfusion.map.fusion import PointFusionMap
-from conceptfusion.map.persistence import FORMAT_VERSION, export_ply, load_map, save_map
+from conceptfusion.map.persistence import FORMAT_VERSION, export_ply, load_map, read_map_meta, save_map
 from conceptfusion.synthetic import orbit_poses, render_boxes, tabletop_boxes
 
 H, W = 36, 48
@@ -144,3 +144,40 @@ def test_atomic_writes_get_the_usual_file_mode(tmp_path):
         os.umask(mask)
     assert path.read_text() == "hello"
     assert stat.S_IMODE(path.stat().st_mode) == 0o644
+
+
+def test_meta_round_trip_and_version_1_files(tmp_path):
+    """A map records how it was made and asked (``meta``, format 2); a version-1 file reads with
+    no meta, and a version-1 header may not carry one."""
+    fmap = PointFusionMap(8)
+    _integrate(fmap, POSES[0])
+    meta = {"encoder": "embedded-v2", "proposer": "rgbd", "setting": "search", "min_score": 0.31, "lookup": "present",
+            "name_only": True, "agent": "map-navigator"}
+    path = save_map(fmap, tmp_path / "m.npz", meta=meta)
+    assert read_map_meta(path) == meta
+    _assert_same(load_map(path), fmap)
+    assert read_map_meta(save_map(fmap, tmp_path / "plain.npz")) == {}
+    _rewrite(tmp_path / "plain.npz", tmp_path / "v1.npz", edit_header=lambda h: h.update(version=1))
+    assert read_map_meta(tmp_path / "v1.npz") == {} and len(load_map(tmp_path / "v1.npz")) == len(fmap)
+    _rewrite(path, tmp_path / "v1meta.npz", edit_header=lambda h: h.update(version=1))
+    with pytest.raises(MapFormatError, match=r"unknown field\(s\) \['meta'\]"):
+        load_map(tmp_path / "v1meta.npz")
+
+
+@pytest.mark.parametrize("meta, match", [
+    ({"encoder": 3}, "'encoder' expected str, got 3"),
+    ({"lookup": "guess"}, "'lookup' expected one of"),
+    ({"name_only": "yes"}, "'name_only' expected bool"),
+    ({"min_score": True}, "'min_score' expected"),
+    ({"colour": "red"}, r"unknown key\(s\) \['colour'\]"),
+])
+def test_bad_meta_is_refused_on_save_and_load(tmp_path, meta, match):
+    fmap = PointFusionMap(8)
+    with pytest.raises(ValueError, match=match):
+        save_map(fmap, tmp_path / "m.npz", meta=meta)
+    assert not (tmp_path / "m.npz").exists()
+    save_map(fmap, tmp_path / "ok.npz", meta={"encoder": "color"})
+    _rewrite(tmp_path / "ok.npz", tmp_path / "bad.npz", edit_header=lambda h: h.update(meta=meta))
+    for read in (load_map, read_map_meta):
+        with pytest.raises(MapFormatError, match=match):
+            read(tmp_path / "bad.npz")

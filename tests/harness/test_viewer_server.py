@@ -262,3 +262,39 @@ def test_answers_equal_the_agents_mapper_on_the_plain_map(folders):
         assert ours["found"] == theirs.found and ours["reason"] == theirs.reason
         assert [r["num_points"] for r in ours["regions"]] == [r.num_points for r in theirs.regions]
         assert all(np.allclose(a["median"], b.median, atol=1e-4) for a, b in zip(ours["regions"], theirs.regions))
+
+
+def _with_meta(src, dst, meta):
+    from conceptfusion.map.persistence import load_map, save_map
+
+    return save_map(load_map(src), dst, meta=meta)
+
+
+def test_the_viewer_asks_with_the_encoder_floor_and_lookup_the_map_records(folders, tmp_path):
+    """A map file records how its agent asked it; the viewer opens it that way with no flag, and
+    says so when told otherwise (or when the file records nothing)."""
+    from conceptfusion.errors import UnknownNameError
+    from harness.viewer.server import perception_for
+
+    demo = folders / "maps" / "map.npz"
+    how = perception_for(demo)  # the demo records its encoder
+    assert (how.encoder, how.lookup, how.notes, how.min_score) == ("color", "plain", (), (None,))
+    strict = _with_meta(demo, tmp_path / "strict.map.npz",
+                        {"encoder": "color", "setting": "tabletop", "min_score": 0.999, "lookup": "present", "name_only": True})
+    with ViewerServer(strict) as srv:
+        q = srv.open_map(None)
+        info = q.info()
+        assert (srv.encoder_name, info["encoder"], info["lookup"], info["score_floor"]) == ("color", "color", "present", 0.999)
+        plain = q.text("red box", lookup="plain")
+        assert not plain["found"] and "floor" in plain["reason"]  # the recorded floor applies
+        agent = q.text("red box")  # the map's own lookup: presumed present, as its agent asked
+        assert agent["found"] and agent["lookup"] == "present" and agent["presumed"] in ("under_floor", "name_only")
+        status, body = _post_json(srv, "/api/query", {"text": "red box", "lookup": "guess"})
+        assert status == 400 and "lookup: expected one of plain, present" in body["error"]
+    unrecorded = _with_meta(demo, tmp_path / "old.map.npz", {})
+    assert "does not record its encoder" in perception_for(unrecorded, None).notes[0]
+    assert perception_for(unrecorded, "color").notes == ()
+    assert "built with 'color'" in perception_for(demo, "embedded").notes[0]
+    alien = _with_meta(demo, tmp_path / "alien.map.npz", {"encoder": "my-clip"})
+    with pytest.raises(UnknownNameError, match=r"records the encoder 'my-clip'.*--import"):
+        ViewerServer(alien)

@@ -267,9 +267,11 @@ function showAnswer(answer) {
   answerEl.replaceChildren();
   const head = document.createElement('div');
   head.className = answer.found ? 'found' : 'not-found';
+  const presumed = answer.presumed ? ` (presumed present: ${answer.presumed.replace('_', ' ')})` : '';
   head.textContent = answer.found
-    ? `${what} query "${answer.query}": found ${answer.num_regions} region${answer.num_regions === 1 ? '' : 's'}`
+    ? `${what} query "${answer.query}": found ${answer.num_regions} region${answer.num_regions === 1 ? '' : 's'}${presumed}`
     : `${what} query "${answer.query}": not found: ${answer.reason}`;
+  answerEl.dataset.presumed = answer.presumed || '';
   answerEl.appendChild(head);
   if (answer.found) {
     const list = document.createElement('ol');
@@ -327,7 +329,8 @@ async function ask(path, init, kind) {
 
 $('text-form').addEventListener('submit', (e) => {
   e.preventDefault();
-  ask('/api/query', { body: JSON.stringify({ text: $('text-query').value }), headers: { 'Content-Type': 'application/json' } }, 'text');
+  const lookup = $('presume').checked ? 'present' : 'plain';
+  ask('/api/query', { body: JSON.stringify({ text: $('text-query').value, lookup }), headers: { 'Content-Type': 'application/json' } }, 'text');
 });
 $('image-file').addEventListener('change', (e) => {
   const file = e.target.files[0];
@@ -372,6 +375,8 @@ async function load() {
   $('map-info').textContent = `${info.map}: ${info.num_points.toLocaleString()} points${thinned}, ` +
     `${info.frames_integrated} frames; encoder ${info.encoder}` + (info.image_queries ? '' : ' (text only)');
   $('image-file').disabled = !info.image_queries;
+  $('presume').checked = info.lookup === 'present';
+  if (info.notes && info.notes.length) { const n = $('map-notes'); n.textContent = info.notes.join(' '); n.hidden = false; }
   if (info.maps.length > 1) {
     const sel = $('map-select');
     for (const name of info.maps) {
