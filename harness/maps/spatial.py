@@ -131,7 +131,8 @@ def _frame_key(results: dict, names: tuple[str, str]) -> tuple:
 
 
 def answer_questions(scan: SceneScan, questions: list[dict], method: str, encoder: str, *, parser: str = DEFAULT_PARSER,
-                     setting: str = "tabletop", assume_present: bool = True, name_only_fallback: bool = True) -> list[dict]:
+                     setting: str = "tabletop", assume_present: bool = True, name_only_fallback: bool = True,
+                     mapper=None) -> list[dict]:
     """Answer each question with ``method`` (``"3d"`` or ``"2.5d"``) and the parser backend
     ``parser``; returns the questions with ``parsed``, ``parse``, ``answer``, ``found``,
     ``correct``, ``reason`` (and ``frame`` for 2.5d). ``setting`` (``"tabletop"`` or
@@ -143,7 +144,8 @@ def answer_questions(scan: SceneScan, questions: list[dict], method: str, encode
     False: such a phrase is "not found" and the question wrong.
 
     Reads the scan's frames (RGB-D and pose); the label images and names only when the
-    perception is privileged (:func:`~harness.maps.scan.fuse_frames`).
+    perception is privileged (:func:`~harness.maps.scan.fuse_frames`). ``mapper``: for ``"3d"``,
+    a mapper that has fused the scan already (``encoder`` is then only its name).
     """
     if method not in METHODS:
         raise ValueError(f"spatial method: expected one of {list(METHODS)}, got {method!r}")
@@ -152,7 +154,7 @@ def answer_questions(scan: SceneScan, questions: list[dict], method: str, encode
     parses = [reader.parse(q["question"]) for q in questions]
     names = sorted({n for p in parses if p.ok for n in p.arguments})
     if method == "3d":
-        mapper = fuse_frames(make_mapper(encoder, "rgbd", setting=setting), scan)
+        mapper = mapper if mapper is not None else fuse_frames(make_mapper(encoder, "rgbd", setting=setting), scan)
         results = {n: _locate(mapper, n, assume_present, name_only_fallback) for n in names}
         return [{**q, **_answer(q, p, results, view)} for q, p in zip(questions, parses)]
     mapper = make_mapper(encoder, "rgbd", persistent=False, setting=setting)
