@@ -27,6 +27,7 @@ from harness.replay.video import render_videos_of
 from harness.report.paths import REPLAYS_DIR, replay_stem
 from harness.runner.jobs import check_deadline, import_plugins, job_record
 from harness.runner.results import agent_label
+from harness.runner.stop_reasons import SearchTrace, rearrange_stop_reason, search_stop_reason, status_stop_reason
 from sim_envs.assets.library import is_library_asset
 from sim_envs.scenes.episodes import Episode
 from sim_envs.scenes.splits import object_group
@@ -92,7 +93,8 @@ class EpisodeJob:
 
     def failure_record(self, status: str, error: str, wall_s: float) -> dict:
         """The record of the episode when its worker timed out or died."""
-        return job_record(self, status=status, error=error, metrics={"success": False}, timings={"wall_s": wall_s})
+        return job_record(self, status=status, error=error, metrics={"success": False}, timings={"wall_s": wall_s},
+                          extras=_ended_extras(self, status))
 
 
 def episode_seed(job: EpisodeJob) -> int:
@@ -189,7 +191,23 @@ def _rollout(env, agent, job: EpisodeJob, *, on_step: Callable[[dict, dict], Non
         if recorder:
             recorder.step(obs, reward, info)
         if terminated or truncated:
-            return info, steps, {"env_s": t_env, "agent_s": t_agent}
+            return info, steps, {"env_s": t_env, "agent_s": t_agent}, bool(truncated and not terminated)
+
+
+def _goal_text(job: EpisodeJob) -> str:
+    """The goal as the agent read it: a search's ``goal`` observation (a chain's goals, shown one
+    at a time, in order and joined with " then "), a tabletop's ``instruction`` (which names every
+    object to push and its side)."""
+    goals = job.episode.goals
+    if job.task == "object_search" and len(goals) > 1 and all(g.description for g in goals):
+        return " then ".join(g.description for g in goals)
+    return job.episode.instruction
+
+
+def _ended_extras(job: EpisodeJob, status: str) -> dict:
+    """``goal`` and ``stop_reason`` of an episode that timed out or crashed (status ``timeout``,
+    ``failed``)."""
+    return {"goal": _goal_text(job), "stop_reason": status_stop_reason(status)}
 
 
 def _description(job: EpisodeJob, scene=None) -> dict:
@@ -210,8 +228,13 @@ def _run_search(job: EpisodeJob, agent, recorder: EpisodeRecorder | None = None)
     kwargs = env_kwargs_for(job.task, job.env_kwargs, agent, records=recorder is not None)
     env = _cached_env(("object_search", tuple(sorted(kwargs.items()))), lambda: _search_env(kwargs))
     path: list[list[float]] = []
-    info, steps, timings = _rollout(env, agent, job, on_step=lambda o, i: path.append([round(float(v), 3) for v in o["base_pose"][:2]]),
-                                    recorder=recorder)
+    trace = SearchTrace()
+
+    def on_step(obs, info):
+        path.append([round(float(v), 3) for v in obs["base_pose"][:2]])
+        trace.observe(obs, info)
+
+    info, steps, timings, truncated = _rollout(env, agent, job, on_step=on_step, recorder=recorder)
     box = env.unwrapped.goal_box
     goal = env.unwrapped.scene.object(job.episode.goals[0].object_id)
     metrics = {
@@ -228,6 +251,8 @@ def _run_search(job: EpisodeJob, agent, recorder: EpisodeRecorder | None = None)
         "path_xy": path, "start_xy": path[0] if path else None,
         "goal_xy": [round(float(v), 3) for v in (box[0, :2] + box[1, :2]) / 2], "scene": job.episode.scene,
         **_description(job, env.unwrapped.scene),
+        "goal": _goal_text(job), "stop_reason": search_stop_reason(trace.end(info, truncated=truncated)),
+        "success_radius": trace.success_radius,
     }
     return metrics, timings, goal.category, extras
 
@@ -235,15 +260,20 @@ def _run_search(job: EpisodeJob, agent, recorder: EpisodeRecorder | None = None)
 def _run_rearrange(job: EpisodeJob, agent, recorder: EpisodeRecorder | None = None) -> tuple[dict, dict, str | None, dict]:
     kwargs = env_kwargs_for(job.task, job.env_kwargs, agent)
     env = _cached_env(("tabletop_rearrange", tuple(sorted(kwargs.items()))), lambda: _rearrange_env(kwargs))
-    info, steps, timings = _rollout(env, agent, job, recorder=recorder)
+    info, steps, timings, _ = _rollout(env, agent, job, recorder=recorder)
     ev = info.get("evaluation", {})
     scene = env.unwrapped.sim.scene
+    judged = env.unwrapped.evaluate()
+    targets = {g.object_id for g in job.episode.goals}
+    stop_reason = rearrange_stop_reason(success=bool(info["success"]), displacement_n=judged.displacement,
+                                        target_n=[o.id in targets for o in scene.objects], targets_done=judged.targets_done)
     category = scene.object(job.episode.goals[0].object_id).category if job.episode.goals else None
     metrics = {"success": bool(info["success"]), "steps": int(info["steps"])}
     for key in ("targets_on_side", "max_distractor_shift", "targets_done_fraction"):
         if isinstance(ev.get(key), (int, float, bool)):
             metrics[key] = ev[key]
-    return metrics, timings, category, {"scene": job.episode.scene, **_description(job, scene)}
+    return metrics, timings, category, {"scene": job.episode.scene, **_description(job, scene), "goal": _goal_text(job),
+                                        "stop_reason": stop_reason}
 
 
 TASK_RUNNERS: dict[str, Callable[..., tuple[dict, dict, str | None, dict]]] = {
@@ -251,7 +281,9 @@ TASK_RUNNERS: dict[str, Callable[..., tuple[dict, dict, str | None, dict]]] = {
     "tabletop_rearrange": _run_rearrange,
 }
 """Per task: (job, agent, recorder=None) -> (metrics, timings, goal category, extras); the
-recorder (an :class:`~harness.replay.record.EpisodeRecorder` or None) follows the rollout."""
+recorder (an :class:`~harness.replay.record.EpisodeRecorder` or None) follows the rollout. Both
+tasks' extras carry ``goal`` (the goal text as the agent read it) and ``stop_reason`` (a word of
+:data:`~harness.runner.stop_reasons.STOP_REASONS`); a search's also ``success_radius`` (m)."""
 
 
 def episode_recorder(job: EpisodeJob, agent=None) -> EpisodeRecorder | None:
@@ -307,13 +339,13 @@ def run_episode(job: EpisodeJob) -> dict:
         status = "failed"
         error = (f"SystemExit: the episode called sys.exit({exc.code!r}); recorded as failed\n"
                  + "".join(traceback.format_exc(limit=-4)))
-        metrics = {"success": False}
+        metrics, extras = {"success": False}, _ended_extras(job, status)
         close_cached_envs()
     except Exception as exc:  # the run goes on; the record says what broke
         _past_deadline_then_close(f"the episode raised {type(exc).__name__}")
         status = "failed"
         error = f"{type(exc).__name__}: {exc}\n" + "".join(traceback.format_exc(limit=-4))
-        metrics = {"success": False}
+        metrics, extras = {"success": False}, _ended_extras(job, status)
         close_cached_envs()  # an environment that raised may be in a bad state
     except BaseException:  # JobTimeout (serial backend), KeyboardInterrupt: clean up, let it through
         close_cached_envs()
