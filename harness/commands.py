@@ -56,7 +56,8 @@ def _print_summary(records: list[dict], stream=None) -> None:
 
 
 _SETTINGS_FLAGS = {"suite": "--suite", "agent": "--agent", "agent_option": "--agent-option", "encoder": "--encoder",
-                   "limit": "--limit", "seed": "--seed", "seeds": "--seeds", "plugin": "--import"}
+                   "limit": "--limit", "seed": "--seed", "seeds": "--seeds", "plugin": "--import", "episodes": "--episodes",
+                   "scenes": "--scenes"}
 """``cfharness run`` arguments that are the run's settings (stored in ``run.json``); attribute -> flag."""
 
 
@@ -66,7 +67,7 @@ def _run_config(args: argparse.Namespace):
     in ``--out``'s ``run.json``, so ``cfharness run --out DIR --resume`` finishes any run."""
     from harness.runner.results import read_run_config
     from harness.runner.run import RunConfig
-    from harness.runner.suites import DEFAULT_SUITES
+    from harness.runner.suites import DEFAULT_SUITES, episodes_suite_name
 
     common = dict(backend=args.backend, workers=args.workers, address=args.address, timeout_s=args.timeout,
                   memory_limit_mb=args.memory_limit_mb, record=args.record)
@@ -81,8 +82,12 @@ def _run_config(args: argparse.Namespace):
             encoder=stored.get("encoder"), agent_kwargs=dict(stored.get("agent_kwargs") or {}), limit=stored.get("limit"),
             seed=stored.get("seed", 0), seeds=stored.get("seeds", 1), plugins=tuple(stored.get("plugins") or ()), **common,
         )
+    if args.scenes is not None and not args.episodes:
+        raise ValueError(f"--scenes: names the folder of --episodes files' scenes; got --scenes {args.scenes!r} without --episodes")
+    own = tuple(episodes_suite_name(f, args.scenes) for f in args.episodes or ())
     return RunConfig(
-        suites=tuple(args.suite or DEFAULT_SUITES), agents=tuple(args.agent) if args.agent else None, encoder=args.encoder,
+        suites=tuple(args.suite or ()) + own if own else tuple(args.suite or DEFAULT_SUITES),
+        agents=tuple(args.agent) if args.agent else None, encoder=args.encoder,
         agent_kwargs=parse_agent_options(args.agent_option), limit=args.limit,
         seed=0 if args.seed is None else args.seed, seeds=1 if args.seeds is None else args.seeds,
         plugins=tuple(args.plugin or ()), **common,
@@ -482,6 +487,7 @@ def add_eval_commands(sub) -> None:
         epilog="examples:\n  cfharness run --suite search --agent map-navigator --agent frame-searcher --encoder oracle\n"
         "  cfharness run --suite rearrange --limit 10 --backend serial\n"
         "  cfharness run --suite search --agent mypkg.agents:MyAgent\n"
+        "  cfharness run --episodes my/episodes.jsonl --scenes my/scenes --out runs/mine\n"
         "  cfharness run --import mypkg.register --suite rearrange --agent my-pusher\n"
         "  cfharness run --backend ray --address auto\n  cfharness run --out runs/main --resume\n\n"
         "exit status:\n  0    done\n  1    an agent broke its regression bound (REGRESSION lines)\n"
@@ -492,6 +498,12 @@ def add_eval_commands(sub) -> None:
         formatter_class=argparse.RawDescriptionHelpFormatter,
     )
     run.add_argument("--suite", action="append", help=f"suite to run, repeatable (choices: {', '.join(SUITES)})")
+    run.add_argument("--episodes", action="append", metavar="FILE",
+                     help="your own episode file (cf-episodes JSON lines, docs/environments.md), repeatable: validated like the "
+                     "shipped ones, then run with the agents and settings of rearrange-v2 or search-v2 (by the file's task); "
+                     "without --suite only these run")
+    run.add_argument("--scenes", metavar="DIR", help="folder the --episodes files' scene references resolve under "
+                     "(default: the shipped scenes/)")
     run.add_argument("--agent", action="append", help="agent name or 'module:Class', repeatable (default: the suite's agents)")
     run.add_argument("--agent-option", action="append", metavar="KEY=VALUE", help="option for agents that accept it, repeatable")
     run.add_argument("--import", dest="plugin", action="append", metavar="MODULE",

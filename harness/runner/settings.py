@@ -27,7 +27,7 @@ from harness.maps.suites import MAP_SUITES
 from harness.replay.record import check_record_mode
 from harness.runner.backends import BACKENDS, memory_limit_refusal, parse_ray_address
 from harness.runner.jobs import import_plugins
-from harness.runner.suites import SUITES, Suite, get_suite
+from harness.runner.suites import EPISODES_PREFIX, SUITES, Suite, get_suite
 
 __all__ = ["validate_run_config", "MAP_SUITE_OPTIONS", "check_agent", "check_agent_factory", "accepts_keyword"]
 
@@ -240,8 +240,8 @@ def validate_run_config(config: Any) -> None:
     for name in config.suites:
         try:
             suites.append(get_suite(name))
-        except ValueError as exc:
-            raise HarnessError(f"--suite: {exc}") from exc
+        except ValueError as exc:  # a user's episode file says --episodes itself
+            raise HarnessError(str(exc) if name.startswith(EPISODES_PREFIX) else f"--suite: {exc}") from exc
     put("agents", _names(config.agents, "--agent", allow_none=True))
     episode_suites = [s for s in suites if s.kind == "episodes"]
     if config.agents:

@@ -55,6 +55,7 @@ v1 tower's score floor); ``limit`` and the per-agent counts take the first episo
 from __future__ import annotations
 
 import dataclasses
+import os
 from dataclasses import dataclass, field
 from pathlib import Path
 
@@ -68,7 +69,7 @@ from sim_envs.scenes.splits import splits
 
 __all__ = ["Suite", "SUITES", "get_suite", "DEFAULT_SUITES", "REARRANGE_V2_ENV", "REARRANGE_V2_LIMIT", "SEARCH_V2_LIMIT", "CHAIN_V2_LIMIT",
            "FRAME_SEARCHER_LIMIT", "GATE_FOLDER", "HEADLINE_GATE", "suite_encoder", "suite_episodes", "FLOORS_FILE",
-           "calibrated_bounds", "suite_over"]
+           "calibrated_bounds", "suite_over", "EPISODES_PREFIX", "TASK_TEMPLATES", "episodes_suite", "episodes_suite_name"]
 
 FLOORS_FILE = Path(__file__).resolve().parents[1] / "data" / "floors" / "floors.json"
 """The regression suites' floors, ceilings and episode counts, written by
@@ -133,6 +134,9 @@ class Suite:
     default_encoder: str = "embedded"
     """Perception when the run names none: the shipped tower trained for the suite's world
     (``embedded`` for the v1 world, ``embedded-v2`` for the object library's)."""
+    scenes_root: Path | None = None
+    """Folder the episodes' scene references resolve under (None: the shipped ``scenes/``); a
+    user's episode suite (:func:`episodes_suite`) may name its own."""
 
 
 REARRANGE_V2_ENV = {"width": 320, "height": 240, "scan_frames": 8}
@@ -310,14 +314,63 @@ def suite_episodes(suite: Suite) -> list[Episode]:
     if suite.episodes_file is None:
         raise HarnessError(f"suite {suite.name!r} has no episodes file (a {suite.kind!r} suite)")
     split = splits()
-    episodes = load_episodes(suite.episodes_file).episodes
+    episodes = load_episodes(suite.episodes_file, scenes_root=suite.scenes_root).episodes
     if is_sealed_file(suite.episodes_file):
         verify_sealed(suite.episodes_file, {e.scene for e in episodes})
     if suite.task == "object_search":
-        check_chains_reachable(episodes, where=str(suite.episodes_file))
+        check_chains_reachable(episodes, where=str(suite.episodes_file), scenes_root=suite.scenes_root)
+    if suite.scenes_root is not None:  # a user's own scenes: the split file reserves shipped ones only
+        return list(episodes)
     return [e for e in episodes if not split.is_reserved_scene(e.scene)]
 
 
+EPISODES_PREFIX = "episodes:"
+"""A suite name that starts so names a user's episode file (:func:`episodes_suite`)."""
+_SCENES_PART = ",scenes="
+TASK_TEMPLATES = {"tabletop_rearrange": "rearrange-v2", "object_search": "search-v2"}
+"""The built-in suite whose agents and environment settings a user's episodes of each task run with by default."""
+
+
+def episodes_suite_name(episodes_file: str | os.PathLike, scenes: str | os.PathLike | None = None) -> str:
+    """The suite name of a user's episode file (``cfharness run --episodes FILE [--scenes DIR]``):
+    ``"episodes:FILE"`` or ``"episodes:FILE,scenes=DIR"``, paths as given."""
+    return f"{EPISODES_PREFIX}{episodes_file}" + (f"{_SCENES_PART}{scenes}" if scenes is not None else "")
+
+
+def episodes_suite(name: str) -> Suite:
+    """The suite a user's episode file makes (``name`` from :func:`episodes_suite_name`): every
+    episode of the file, validated as the shipped ones are (:func:`~sim_envs.scenes.episodes.load_episodes`:
+    the header, each line's fields, the scenes resolved exactly, goal objects present, starts
+    inside the apartment; search episodes reachable), scene references resolved under the
+    ``scenes=`` folder (default: the shipped ``scenes/``), run with the agents and environment
+    settings of the built-in suite :data:`TASK_TEMPLATES` names for the file's task (``--agent``
+    and ``--encoder`` choose others), no limit and no regression bounds.
+
+    Raises:
+        HarnessError: the name is not of that form, or the file or scene folder is missing or
+            invalid (the message names the file and line).
+    """
+    spec = name[len(EPISODES_PREFIX):]
+    path, _, scenes = spec.partition(_SCENES_PART)
+    if not name.startswith(EPISODES_PREFIX) or not path:
+        raise HarnessError(f"expected a suite name 'episodes:FILE' (an episode file), got {name!r}")
+    root = Path(scenes) if scenes else None
+    if root is not None and not root.is_dir():
+        raise HarnessError(f"--scenes: expected a folder of scene files, got {scenes!r} (no such folder)")
+    try:
+        task = load_episodes(path, scenes_root=root).task  # every line checked here, before any episode runs
+    except (OSError, ValueError) as exc:
+        raise HarnessError(f"--episodes: {exc}") from exc
+    base = SUITES[TASK_TEMPLATES[task]]
+    suite = suite_over(base, name, Path(path))
+    env = {**base.env_kwargs, **({"scenes_root": str(root.resolve())} if root is not None else {})}
+    return dataclasses.replace(suite, description=f"{task} episodes of {path} (agents and settings of {base.name})",
+                               env_kwargs=env, scenes_root=root.resolve() if root is not None else None)
+
+
 def get_suite(name: str) -> Suite:
-    """The suite called ``name``; ``ValueError`` naming the nearest ones otherwise."""
+    """The suite called ``name`` (a built-in one, or a user's episode file named
+    ``episodes:FILE``: :func:`episodes_suite`); ``ValueError`` naming the nearest ones otherwise."""
+    if name.startswith(EPISODES_PREFIX):
+        return episodes_suite(name)
     return lookup(SUITES, name, "suite")
