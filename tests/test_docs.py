@@ -38,3 +38,7 @@ def test_the_docs_site_builds_in_strict_mode(tmp_path):
     assert "WARNING" not in done.stderr
     built = {p.parent.name for p in (tmp_path / "site").glob("*/index.html")}
     assert {"environments", "regression-gate", "results"} <= built
+    api = (tmp_path / "site" / "api" / "index.html").read_text()  # rendered from the docstrings (mkdocstrings)
+    for name in ("register_encoder", "make_mapper", "register_agent", "RGBDFrame", "load_map"):
+        assert re.search(rf'id="[a-z_.]+\.{name}"', api), name
+    assert "Example" in api and "Raises" in api
