@@ -26,8 +26,8 @@ import textwrap
 import cv2
 import numpy as np
 
+from harness.replay.captions import FrameText
 from harness.replay.record import Recording
-from sim_envs.envs.rearrange_eval import DISTRACTOR_TOLERANCE, SIDE_MARGIN, VIEW_DIR
 
 __all__ = ["FRAME_SHAPE", "draw_frame", "Renderer"]
 
@@ -50,6 +50,7 @@ _PATH, _ROBOT, _START = (200, 110, 30), (40, 40, 220), (60, 170, 60)
 _GOAL, _RING, _ANSWER, _PUSH = (40, 40, 200), (0, 140, 255), (200, 40, 200), (200, 160, 0)
 _TABLE, _LINE = (120, 160, 200), (0, 220, 240)
 _OK_TEXT, _BAD_TEXT = (0, 130, 0), (0, 0, 190)
+_TONE = {"plain": _BLACK, "dim": _DARK, "ok": _OK_TEXT, "bad": _BAD_TEXT, "answer": _ANSWER}
 
 
 class _View:
@@ -91,12 +92,6 @@ def _fit(text: str, width: int, scale: float = 0.42) -> str:
     return text + "~"
 
 
-def _box_distance_xy(xy_n2, lo_2, hi_2) -> np.ndarray:
-    """Horizontal distance (m) of points to an axis-aligned box (0 inside); (N, 2) -> (N,)."""
-    d = np.maximum(np.maximum(np.asarray(lo_2) - xy_n2, 0.0), np.asarray(xy_n2) - np.asarray(hi_2))
-    return np.linalg.norm(d, axis=-1)
-
-
 def _rounded_box(lo_2, hi_2, r: float, arc: int = 8) -> np.ndarray:
     """Outline (N, 2) of the points within ``r`` of the box ``[lo, hi]``: the box grown by ``r``
     with round corners."""
@@ -108,24 +103,17 @@ def _rounded_box(lo_2, hi_2, r: float, arc: int = 8) -> np.ndarray:
     return np.concatenate(pts)
 
 
-def _cm(metres: float) -> str:
-    return f"{100 * metres:.1f} cm"
-
-
 class Renderer:
     """Draws the frames of one recording: the static parts (background, view, legend) once,
     :meth:`frame` per step."""
 
     def __init__(self, rec: Recording) -> None:
-        self.rec, a, h = rec, rec.arrays, rec.header
-        self.search = "pose_t3" in a
-        self.rearrange = "objects_tn2" in a
+        self.rec, a = rec, rec.arrays
+        self.text = FrameText(rec)
+        self.search, self.rearrange = self.text.search, self.text.rearrange
         self.actions = a["actions_ta"]
         self.last = rec.num_frames - 1
         self.pushes = self._pushes()
-        self.radius = float(h.get("success_radius", h.get("success_distance", 1.0)))
-        self.goal_distance = self._goal_distance()
-        self.past_line = self._past_line()
         self.bg = np.full((_H, _TOP_W, 3), 255, np.uint8)
         lo, hi = self._bounds()
         self.view = _View(lo, hi, _TOP_W, _H)
@@ -156,43 +144,6 @@ class Renderer:
         seg = np.concatenate([a[:, :2], end], axis=1)
         seg[a[:, 4] > 0.5] = np.nan
         return seg
-
-    def goal_box(self, t: int) -> np.ndarray | None:
-        """Search: the current goal object's box (2, 3) on frame ``t`` (a chain's goals one after
-        the other; older recordings: the first goal's), or None."""
-        a = self.rec.arrays
-        if "goal_box_t23" in a:
-            return a["goal_box_t23"][t]
-        return a.get("goal_box_23")
-
-    def _goal_distance(self) -> np.ndarray | None:
-        """Search: the base's distance to the goal per frame (T + 1,): as the environment measured
-        it (``goal_distance_t``), else (older recordings) from the pose and the goal's box."""
-        a = self.rec.arrays
-        if "goal_distance_t" in a:
-            return a["goal_distance_t"].astype(np.float64)
-        if self.search and self.goal_box(0) is not None:
-            boxes = np.stack([self.goal_box(t) for t in range(self.rec.num_frames)])
-            return _box_distance_xy(a["pose_t3"][:, :2], boxes[:, 0, :2], boxes[:, 1, :2])
-        return None
-
-    def _past_line(self) -> np.ndarray | None:
-        """Rearrange: per frame how far each target is past the line on its instructed side (m,
-        negative: short of it), (T + 1, K): as the environment judged it (``target_past_line_tk``),
-        else (older recordings) from the objects' xy and the line."""
-        a, objects = self.rec.arrays, self.rec.header.get("objects", {})
-        if "target_past_line_tk" in a:
-            return a["target_past_line_tk"].astype(np.float64)
-        targets, sides = objects.get("targets", []), objects.get("sides", [])
-        if not self.rearrange or "line_22" not in a or len(targets) != len(sides) or not targets:
-            return None
-        p0, p1 = a["line_22"].astype(np.float64)
-        d = (p1 - p0) / max(float(np.linalg.norm(p1 - p0)), 1e-9)
-        normal = np.array([-d[1], d[0]])
-        if normal @ np.array([VIEW_DIR[1], -VIEW_DIR[0]]) < 0:  # point it to the viewer's right
-            normal = -normal
-        sign = np.array([1.0 if s == "right" else -1.0 for s in sides])
-        return ((a["objects_tn2"][:, targets].astype(np.float64) - p0) @ normal) * sign
 
     def _bounds(self) -> tuple[np.ndarray, np.ndarray]:
         a, pts = self.rec.arrays, []
@@ -272,34 +223,11 @@ class Renderer:
 
     # per frame -------------------------------------------------------------------------------
 
-    def answers(self, t: int) -> list[tuple[str, int, np.ndarray, np.ndarray]]:
-        """Per query: (text, found 1/0/-1, median (3,), box (2, 3)) on frame ``t``."""
-        a = self.rec.arrays
-        return [(q, int(a["answer_found_tq"][t, j]), a["answer_median_tq3"][t, j], a["answer_box_tq23"][t, j])
-                for j, q in enumerate(self.rec.queries)]
-
-    def goal_text(self, t: int) -> str:
-        """The goal as the agent was told it on frame ``t`` (a chain reveals goals one by one)."""
-        h = self.rec.header
-        text = str(h.get("goal") or h.get("instruction") or "")
-        for frame, goal in h.get("goal_changes", []):
-            if frame <= t:
-                text = str(goal)
-        return text
-
-    def _reason(self, t: int, q: int) -> str:
-        """Why query ``q`` was last answered "not found" on or before frame ``t`` ("" if unsaid)."""
-        reason = ""
-        for event in self.rec.header.get("answer_events", []):
-            if len(event) >= 4 and event[0] <= t and event[1] == q:
-                reason = "" if event[2] else str(event[3])
-        return reason
-
     def topdown(self, t: int) -> np.ndarray:
         img, a, v = self.bg.copy(), self.rec.arrays, self.view
-        box = self.goal_box(t) if self.search else None
+        box = self.text.goal_box(t)
         if box is not None and np.all(np.isfinite(box)):
-            ring = v.px(_rounded_box(box[0, :2], box[1, :2], self.radius))
+            ring = v.px(_rounded_box(box[0, :2], box[1, :2], self.text.radius))
             cv2.polylines(img, [ring.reshape(-1, 1, 2)], True, _RING, 1, cv2.LINE_AA)
             cv2.rectangle(img, v.pt(box[0, :2]), v.pt(box[1, :2]), _GOAL, 2)
         if self.search:
@@ -320,12 +248,13 @@ class Renderer:
                     if np.all(np.isfinite(seg)):
                         cv2.arrowedLine(img, v.pt(seg[:2]), v.pt(seg[2:]), _ROBOT if k == t - 1 else _PUSH, 2, cv2.LINE_AA,
                                         tipLength=0.2)
-        for _, found, median, box in self.answers(t):
+        for _, found, median, box in self.text.answers(t):
             if found == 1 and np.all(np.isfinite(box)):
                 cv2.rectangle(img, v.pt(box[0, :2]), v.pt(box[1, :2]), _ANSWER, 1, cv2.LINE_AA)
                 cv2.drawMarker(img, v.pt(median[:2]), _ANSWER, cv2.MARKER_CROSS, 12, 2, cv2.LINE_AA)
         if t == self.last:
-            word, color = self._verdict()
+            word, ok = self.text.verdict()
+            color = _OK_TEXT if ok else _BAD_TEXT
             size = cv2.getTextSize(word, _FONT, 0.8, 2)[0]
             cv2.rectangle(img, (_TOP_W - size[0] - 16, 4), (_TOP_W - 4, 12 + size[1] + 8), _WHITE, -1)
             _text(img, word, (_TOP_W - size[0] - 10, 12 + size[1]), color, 0.8, 2)
@@ -334,7 +263,7 @@ class Renderer:
     def banner(self, t: int) -> np.ndarray:
         """The goal banner: ``Goal: ...`` in white on dark blue, one line or two."""
         img = np.full((_BANNER, _W, 3), _BANNER_BG, np.uint8)
-        text = "Goal: " + (self.goal_text(t) or "(none recorded)")
+        text = self.text.goal(t)
         if _width(text, 0.7, 2) <= _W - 16:
             _text(img, text, (8, 30), _WHITE, 0.7, 2)
             return img
@@ -344,104 +273,16 @@ class Renderer:
             _text(img, _fit(line, _W - 16, 0.52), (8, 18 + 19 * row), _WHITE, 0.52)
         return img
 
-    def _verdict(self) -> tuple[str, tuple[int, int, int]]:
-        h = self.rec.header
-        if h.get("success"):
-            return "SUCCESS", _OK_TEXT
-        status = str(h.get("status", "ok"))
-        return ("FAILED" if status == "ok" else status.upper()), _BAD_TEXT
-
-    def _progress_lines(self, t: int) -> list[tuple[str, tuple[int, int, int]]]:
-        """How far frame ``t`` is from success: search one line, rearrange one per target and
-        one for the other objects."""
-        out = []
-        if self.goal_distance is not None:
-            d = float(self.goal_distance[t])
-            if math.isfinite(d):
-                inside = d <= self.radius
-                out.append((f"{d:.2f} m to goal (success within {self.radius:.2f} m)", _OK_TEXT if inside else _BLACK))
-        if self.past_line is not None:
-            objects = self.rec.header.get("objects", {})
-            names, sides = objects.get("names", []), objects.get("sides", [])
-            margin = float(self.rec.header.get("side_margin", SIDE_MARGIN))
-            for k, (target, side) in enumerate(zip(objects.get("targets", []), sides)):
-                if k >= self.past_line.shape[1] or not math.isfinite(float(self.past_line[t, k])):
-                    continue
-                past = float(self.past_line[t, k])
-                name = names[target] if target < len(names) else f"target {k + 1}"
-                where = f"{_cm(past)} past the line" if past >= 0 else f"{_cm(-past)} on the wrong side of the line"
-                out.append((f"{name}: {where} (success: {_cm(margin)} past it, to the {side})",
-                            _OK_TEXT if past >= margin else _BLACK))
-            shift = float(self.rec.arrays["distractor_shift_t"][t]) if "distractor_shift_t" in self.rec.arrays else math.nan
-            if math.isfinite(shift):
-                limit = float(self.rec.header.get("distractor_tolerance", DISTRACTOR_TOLERANCE))
-                out.append((f"other objects moved at most {_cm(shift)} (must stay under {_cm(limit)})",
-                            _BLACK if shift < limit else _BAD_TEXT))
-        return out
-
-    def _map_line(self, t: int) -> tuple[str, tuple[int, int, int]]:
-        h = self.rec.header
-        parts = []
-        for j, (q, found, median, _) in enumerate(self.answers(t)):
-            if found == 1:
-                where = f"'{q}' found at ({median[0]:.2f}, {median[1]:.2f})"
-                box = self.goal_box(t) if self.search else None
-                if box is not None and np.all(np.isfinite(median[:2])):
-                    where += f", {float(_box_distance_xy(median[:2], box[0, :2], box[1, :2])):.2f} m from the goal object"
-                parts.append(where)
-            elif found == 0:
-                reason = self._reason(t, j)
-                parts.append(f"'{q}' not found" + (f" ({reason})" if reason else ""))
-        if parts:
-            return "map: " + "; ".join(parts), _ANSWER
-        if h.get("map_answers", bool(self.rec.queries)):
-            return "map: not asked yet", _DARK
-        return "map: the agent keeps none", _DARK
-
-    def _outcome_line(self) -> tuple[str, tuple[int, int, int]]:
-        """The last frame's verdict and why the episode stopped."""
-        h = self.rec.header
-        word, color = self._verdict()
-        reason = h.get("stop_reason")
-        if reason:
-            text = f"{word}: stop reason '{reason}'"
-        elif h.get("status", "ok") != "ok":
-            error = str(h.get("error") or "").strip().splitlines()
-            text = f"{word}: " + (error[0] if error else "the episode did not finish")
-        else:
-            column = 2 if self.search else 4 if self.rearrange else None  # the action's stop flag
-            if column is not None and self.actions.ndim == 2 and len(self.actions) and self.actions.shape[1] > column:
-                stopped = float(self.actions[-1, column]) > 0.5
-                text = f"{word}: " + ("the agent stopped" if stopped else "the step limit ended it") + f" after {self.last} steps"
-            else:
-                text = f"{word} after {self.last} steps"
-        if self.goal_distance is not None and math.isfinite(float(self.goal_distance[-1])) and not h.get("success"):
-            text += f", {float(self.goal_distance[-1]):.2f} m from the goal"
-        return text, color
-
-    def _info_lines(self, t: int) -> list[tuple[str, tuple[int, int, int]]]:
-        h = self.rec.header
-        lines = [(f"step {t} of {self.last}   agent {h.get('agent_label', h.get('agent'))}   episode {h.get('episode_id')}",
-                  _DARK)]
-        lines += self._progress_lines(t)
-        lines.append(self._map_line(t))
-        if t == self.last:
-            lines.append(self._outcome_line())
-        return lines[:_INFO_LINES]
-
-    def captions(self, t: int) -> list[str]:
-        """The text of frame ``t``, uncut: the goal banner, then the lines under the panels (step;
-        distance to success; the map's answer; on the last frame the outcome)."""
-        return ["Goal: " + (self.goal_text(t) or "(none recorded)")] + [text for text, _ in self._info_lines(t)]
-
     def strip(self, t: int) -> np.ndarray:
         """The text lines under the panels on frame ``t``."""
         img = np.full((_INFO, _W, 3), 245, np.uint8)
-        lines = self._info_lines(t)
-        for row, (text, color) in enumerate(lines):
-            last_row = t == self.last and row == len(lines) - 1
-            _text(img, _fit(text, _W - 12, 0.45 if last_row else 0.42), (6, 14 + row * _LINE_H), color,
-                  0.45 if last_row else 0.42, 2 if last_row else 1)
+        lines = self.text.styled(t)
+        if len(lines) > _INFO_LINES:  # keep the outcome on the last frame
+            lines = lines[:_INFO_LINES - 1] + lines[-1:] if t == self.last else lines[:_INFO_LINES]
+        for row, (text, tone) in enumerate(lines):
+            last_row = t == self.last and row == len(lines) - 1  # the outcome, in bold
+            scale = 0.45 if last_row else 0.42
+            _text(img, _fit(text, _W - 12, scale), (6, 14 + row * _LINE_H), _TONE[tone], scale, 2 if last_row else 1)
         return img
 
     def frame(self, t: int) -> np.ndarray:

@@ -17,6 +17,7 @@ from agents.pusher import parse_push_instruction
 from conceptfusion.errors import HarnessError, MissingFileError, ReplayFormatError
 from harness.replay import record as record_module
 from harness.replay import video as video_module
+from harness.replay.captions import FrameText
 from harness.replay.draw import FRAME_SHAPE, Renderer, draw_frame
 from harness.replay.record import (
     FORMAT_VERSION, EpisodeRecorder, Recording, load_recording, read_header, save_recording, success_marker,
@@ -355,17 +356,23 @@ def test_a_video_is_h264_with_one_frame_per_step_and_the_goal_on_its_first_frame
 def test_each_frame_says_the_goal_the_distance_to_success_and_the_maps_answer(search_run):
     run, (rec,) = search_run
     r = load_recording(_recording_path(run, rec))
-    renderer = Renderer(r)
+    text = FrameText(r)
     pose, box = r.arrays["pose_t3"], r.arrays["goal_box_23"]
     # worked out here: the base's horizontal distance to the goal object's footprint at the start
     gap = np.maximum(np.maximum(box[0, :2] - pose[0, :2], 0), pose[0, :2] - box[1, :2])
-    first = renderer.captions(0)
+    first = text.lines(0)
     assert first[0] == f"Goal: {r.header['goal']}"
     assert f"{np.linalg.norm(gap):.2f} m to goal (success within 1.00 m)" in first
     assert "map: the agent keeps none" in first  # a random walker has no map
-    last = renderer.captions(r.num_frames - 1)
+    last = text.lines(r.num_frames - 1)
     assert last[-1].startswith("SUCCESS" if rec["metrics"]["success"] else "FAILED")
     assert f"{rec['metrics']['distance_to_goal']:.2f} m to goal (success within 1.00 m)" in last[2]
+    # a recording of an older harness (no per-frame distance or goal box): worked out from the pose
+    older = Recording(r.header, {k: v for k, v in r.arrays.items() if k not in ("goal_distance_t", "goal_box_t23")})
+    assert FrameText(older).lines(0) == first
+    # a chain reveals its next goal: the banner follows from that frame on
+    chain = Recording({**r.header, "goal_changes": [[3, "the sofa"]]}, r.arrays)
+    assert [FrameText(chain).goal(t) for t in (2, 3, 4)] == [f"Goal: {r.header['goal']}", "Goal: the sofa", "Goal: the sofa"]
 
 
 def test_the_last_frame_says_why_the_episode_stopped(tmp_path):
@@ -385,11 +392,11 @@ def test_the_last_frame_says_why_the_episode_stopped(tmp_path):
                          extras={"stop_reason": "not_found", "goal": "the red cup", "path_xy": [[0, 0]]})
     r = load_recording(path)
     assert r.header["stop_reason"] == "not_found" and "path_xy" not in r.header  # only the outcome's extras
-    lines = Renderer(r).captions(1)
+    lines = FrameText(r).lines(1)
     assert lines[0] == "Goal: the red cup"
     assert "map: 'red cup' not found (no region scored above the floor)" in lines
     assert lines[-1] == "FAILED: stop reason 'not_found'"
-    assert not any(line.startswith("FAILED") for line in Renderer(r).captions(0))  # the outcome on the last frame only
+    assert not any(line.startswith("FAILED") for line in FrameText(r).lines(0))  # the outcome on the last frame only
 
 
 def test_a_rearrangement_frame_says_how_far_each_target_is_past_the_line(rearrange_run):
@@ -400,7 +407,7 @@ def test_a_rearrangement_frame_says_how_far_each_target_is_past_the_line(rearran
         names, targets = r.header["objects"]["names"], r.header["objects"]["targets"]
         assert past.shape == (r.num_frames, len(targets)) and np.all(np.isfinite(past))
         assert (bool(np.all(past[-1] >= 0.02)) and r.arrays["distractor_shift_t"][-1] < 0.05) == rec["metrics"]["success"]
-        lines = Renderer(r).captions(r.num_frames - 1)
+        lines = FrameText(r).lines(r.num_frames - 1)
         for k, target in enumerate(targets):
             d = past[-1, k]
             where = f"{100 * d:.1f} cm past the line" if d >= 0 else f"{100 * -d:.1f} cm on the wrong side of the line"
