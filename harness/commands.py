@@ -539,7 +539,8 @@ def add_eval_commands(sub) -> None:
                      "broken (a crash, or a floor its remaining episodes can no longer reach); --resume finishes it")
     run.add_argument("--record", default="failures", metavar="{failures,all,none}",
                      help="episode recordings in OUT/replays/ (camera frames, poses, actions, the map's answers; "
-                     "videos with the report): failures (default), all or none")
+                     "H.264 videos that play in any browser): failures (default: every failed episode, plus the "
+                     "first successful one of each suite and agent to compare them with), all or none")
     run.set_defaults(func=cmd_run)
 
     cmp_ = sub.add_parser("compare", help="paired comparison of two agents on the same episodes")
@@ -561,8 +562,9 @@ def add_eval_commands(sub) -> None:
     rpl = sub.add_parser(
         "replay", help="render an episode's recording to a video (camera beside a top-down view)",
         description="Render the recording of one episode of a run (RUN/replays/, written by cfharness run --record) "
-        "to a video: the agent's camera beside a top-down view with the floor plan or table, the path so far, the "
-        "goal and what the map answered. MP4 through OpenCV, GIF when no MP4 writer is available.",
+        "to a video: the goal, the agent's camera beside a top-down view with the floor plan or table, the path so far, "
+        "the distance to success and what the map answered, the outcome and why the episode stopped. H.264 MP4 "
+        "through PyAV (plays in any browser); a GIF when PyAV is missing.",
         epilog="examples:\n  cfharness replay runs/main search-v1-0007\n"
         "  cfharness replay runs/main search-v1-0007 --agent map-navigator --out nav.mp4\n"
         "  cfharness replay runs/main runs/main/replays/search__map-navigator__search-v1-0007__s0.npz",

@@ -57,7 +57,8 @@ def _not_recorded(run_dir: Path, episode: str, suite, agent, seed) -> str:
         status = ", ".join(sorted({str(r.get("status")) for r in records if r.get("status") != "ok"})) or "ok"
         return head + (f"an episode that times out or whose worker dies leaves none (status: {status}; "
                        "see its error in results.jsonl)")
-    return head + f"the run used --record {mode}; run it again with --record all to record every episode"
+    kept = " (failures, and one success per suite and agent)" if mode == "failures" else ""
+    return head + f"the run used --record {mode}{kept}; run it again with --record all to record every episode"
 
 
 def find_recording(run_dir: str | os.PathLike, episode: str, *, suite: str | None = None, agent: str | None = None,

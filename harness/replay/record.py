@@ -4,14 +4,18 @@ An :class:`EpisodeRecorder` follows one episode. The rollout calls :meth:`~Episo
 after the reset, :meth:`~EpisodeRecorder.act` once the agent has chosen an action and
 :meth:`~EpisodeRecorder.step` after the environment stepped; it only reads what it is given and
 never changes the episode. It buffers in memory, and :meth:`~EpisodeRecorder.finish` writes the
-recording (mode ``"all"``, or ``"failures"`` when the episode failed) to
-``RUN/replays/<stem>.npz`` (:func:`harness.report.paths.replay_stem`), and a map agent's final map
-beside it as ``<stem>.map.npz`` (:func:`conceptfusion.map.persistence.save_map`) when that map is
-under :data:`MAP_BUDGET_BYTES`.
+recording (see :data:`RECORD_MODES`: every episode, or the failures and one success per suite and
+agent) to ``RUN/replays/<stem>.npz`` (:func:`harness.report.paths.replay_stem`), and a map agent's
+final map beside it as ``<stem>.map.npz`` (:func:`conceptfusion.map.persistence.save_map`) when
+that map is under :data:`MAP_BUDGET_BYTES`.
 
 A recording file is a compressed ``.npz`` holding a JSON ``header`` (format, version, the
-episode's key fields, goal text, scene, outcome, the queries the map answered, the map file) and
-these arrays, for an episode of ``T`` steps (``T + 1`` frames: the reset's and one per step):
+episode's key fields, goal text and ``goal_changes`` (``[frame, text]`` each time a chain reveals
+its next goal), scene, what success needs (search: ``success_distance`` m; rearrange:
+``side_margin`` and ``distractor_tolerance`` m), outcome (``status``, ``success``, ``metrics``,
+``error``, ``stop_reason`` when the harness passed one, ``recorded_as``), the queries the map
+answered, the map file) and these arrays, for an episode of ``T`` steps (``T + 1`` frames: the
+reset's and one per step):
 
 =====================  ===================  ===========================================================
 ``frames_jpeg``        (B,) uint8           the camera frames, JPEG, one after the other
@@ -24,9 +28,13 @@ these arrays, for an episode of ``T`` steps (``T + 1`` frames: the reset's and o
 ``answer_median_tq3``  (T + 1, Q, 3) f32    the best region's median (world metres; NaN: none)
 ``answer_box_tq23``    (T + 1, Q, 2, 3) f32 the best region's box, lower and upper corner
 ``pose_t3``            (T + 1, 3) float64   search: base pose ``(x, y, yaw)`` per frame
-``goal_box_23``        (2, 3) float64       search: the goal object's box
+``goal_distance_t``    (T + 1,) float32     search: the base's distance to the current goal's box (m)
+``goal_box_23``        (2, 3) float64       search: the (first) goal object's box
+``goal_box_t23``       (T + 1, 2, 3) f64    search: the current goal object's box per frame
 ``floor_blocked_hw``   (H, W) bool          search: the floor plan (header ``floor``: origin, cell)
 ``objects_tn2``        (T + 1, N, 2) f32    rearrange: every object's xy per frame
+``target_past_line_tk``(T + 1, K) float32   rearrange: each target's distance past the line on its side (m)
+``distractor_shift_t`` (T + 1,) float32     rearrange: the largest move of another object from its start (m)
 ``object_radius_n``    (N,) float32         rearrange: half the larger side of each object's footprint
 ``table_xy_22``        (2, 2) float64       rearrange: table top lower and upper corner
 ``line_22``            (2, 2) float64       rearrange: the line's two endpoints
@@ -43,6 +51,7 @@ import json
 import logging
 import math
 import os
+import re
 import time
 import zipfile
 from dataclasses import dataclass
@@ -54,23 +63,29 @@ import numpy as np
 
 from conceptfusion.array_files import check_npz_headers
 from conceptfusion.errors import HarnessError, MissingFileError, ReplayFormatError
-from conceptfusion.io_utils import atomic_write_bytes
+from conceptfusion.io_utils import atomic_write_bytes, atomic_write_text
 from conceptfusion.map.fusion import PointFusionMap
 from conceptfusion.map.persistence import save_map
 from conceptfusion.map.thin import thin_map
 from conceptfusion.names import did_you_mean
 from harness.report.paths import MAP_SUFFIX
+from sim_envs.envs.rearrange_eval import DISTRACTOR_TOLERANCE, SIDE_MARGIN
 from sim_envs.scenes.floorplan import occupancy_grid
 
 __all__ = [
     "RECORD_MODES", "FORMAT_NAME", "FORMAT_VERSION", "MAP_BUDGET_BYTES", "Recording", "EpisodeRecorder",
-    "check_record_mode", "save_recording", "load_recording", "read_header", "is_recording_file",
+    "check_record_mode", "save_recording", "load_recording", "read_header", "is_recording_file", "success_marker",
+    "OUTCOME_EXTRAS",
 ]
 
 _LOG = logging.getLogger(__name__)
 
 RECORD_MODES = ("failures", "all", "none")
-"""``--record``: write the episodes that failed (the default), every episode, or none."""
+"""``--record``: ``"failures"`` (the default) writes every episode that failed and, to compare
+them with, the first successful episode of each suite and agent (label) that has none recorded
+yet; ``"all"`` every episode; ``"none"`` nothing. Which success was kept is noted in the replays
+folder (:func:`success_marker`), so a resumed run or several workers keep one (two workers that
+finish a first success at the same moment may keep two)."""
 FORMAT_NAME = "cfharness-replay"
 FORMAT_VERSION = 1
 MAP_BUDGET_BYTES = 16 * 2**20
@@ -80,6 +95,9 @@ this many bytes (:meth:`~conceptfusion.map.fusion.PointFusionMap.nbytes`): a tab
 (about 8 MB) is saved whole; an apartment map of a whole search episode (about 50 MB) is thinned
 to one point per voxel (:func:`~conceptfusion.map.thin.thin_map`; each kept point exact), and the
 recording's header says so. The recording keeps the map's answers either way."""
+
+OUTCOME_EXTRAS = ("goal", "stop_reason", "success_radius")
+"""Keys of a results record's ``extras`` that :meth:`EpisodeRecorder.finish` copies into the header."""
 
 _FRAME_WIDTH = 160
 _JPEG_QUALITY = 75
@@ -155,8 +173,10 @@ _REQUIRED = {  # name: (dtype kinds, ndim)
 _OPTIONAL = {
     "pose_t3": ("f", 2), "goal_box_23": ("f", 2), "floor_blocked_hw": ("b", 2), "objects_tn2": ("f", 3),
     "object_radius_n": ("f", 1), "table_xy_22": ("f", 2), "line_22": ("f", 2),
+    "goal_distance_t": ("f", 1), "goal_box_t23": ("f", 3), "target_past_line_tk": ("f", 2), "distractor_shift_t": ("f", 1),
 }
-_PER_FRAME = ("reward_t", "success_t", "answer_found_tq", "answer_median_tq3", "answer_box_tq23", "pose_t3", "objects_tn2")
+_PER_FRAME = ("reward_t", "success_t", "answer_found_tq", "answer_median_tq3", "answer_box_tq23", "pose_t3", "objects_tn2",
+              "goal_distance_t", "goal_box_t23", "target_past_line_tk", "distractor_shift_t")
 _HEADER_KEYS = ("task", "suite", "agent", "episode_id", "seed")
 
 
@@ -275,7 +295,14 @@ def _search_scene(env, obs, info) -> tuple[dict, dict]:
 
 
 def _search_state(obs, info) -> dict:
-    return {"pose_t3": np.asarray(obs["base_pose"], np.float64)[:3].copy()}
+    """The pose, the distance to the current goal and (at the reset and when a chain reveals its
+    next goal: the frames whose ``info`` has it) the current goal's box; a frame without a key
+    keeps the previous frame's value (:meth:`EpisodeRecorder.recording`)."""
+    state = {"pose_t3": np.asarray(obs["base_pose"], np.float64)[:3].copy(),
+             "goal_distance_t": np.float32(info.get("distance_to_goal", np.nan))}
+    if info.get("goal_aabb") is not None:
+        state["goal_box_t23"] = np.asarray(info["goal_aabb"], np.float64).reshape(2, 3).copy()
+    return state
 
 
 def _rearrange_scene(env, obs, info) -> tuple[dict, dict]:
@@ -284,7 +311,8 @@ def _rearrange_scene(env, obs, info) -> tuple[dict, dict]:
     header = {"goal": str(obs["instruction"]), "scene_id": str(info.get("scene_id", "")),
               "objects": {"ids": ids, "names": list(info["object_names"]),
                           "targets": [ids.index(t) for t in info["target_ids"] if t in ids],
-                          "sides": list(info["target_sides"])}}
+                          "sides": list(info["target_sides"])},
+              "side_margin": SIDE_MARGIN, "distractor_tolerance": DISTRACTOR_TOLERANCE}
     return header, {
         "table_xy_22": np.asarray(info["table_xy"], np.float64).reshape(2, 2).copy(),
         "line_22": np.asarray(obs["line"], np.float64).reshape(2, 2).copy(),
@@ -293,8 +321,13 @@ def _rearrange_scene(env, obs, info) -> tuple[dict, dict]:
 
 
 def _rearrange_state(obs, info) -> dict:
+    """Every object's xy and, from the environment's judgement, how far each target is past the
+    line on its side and how far the other objects moved."""
     poses = np.asarray(info["object_poses"], np.float64)
-    return {"objects_tn2": poses.reshape(len(poses), -1)[:, :2].astype(np.float32)}
+    ev = info.get("evaluation") or {}
+    past = np.asarray(ev.get("target_past_line", [np.nan] * len(info.get("target_ids", []))), np.float32).ravel()
+    return {"objects_tn2": poses.reshape(len(poses), -1)[:, :2].astype(np.float32), "target_past_line_tk": past,
+            "distractor_shift_t": np.float32(ev.get("max_distractor_displacement", np.nan))}
 
 
 _TASK_PROBES: dict[str, tuple[Callable, Callable]] = {
@@ -351,6 +384,7 @@ class EpisodeRecorder:
         self._events: list[list] = []
         self._scene_header: dict = {}
         self._scene_arrays: dict = {}
+        self._goals: list[list] = []  # [frame, goal text] each time the observation's goal changes
         self._frame_size = (0, 0)
 
     # hooks, called by the rollout -------------------------------------------------------------
@@ -399,7 +433,10 @@ class EpisodeRecorder:
                                [cv2.IMWRITE_JPEG_QUALITY, self.jpeg_quality])
         if not ok:
             raise ValueError("observation rgb: JPEG encoding failed")
-        state = self._state_probe(obs, info) if self._state_probe is not None else {}
+        state = self._state_probe(obs, info or {}) if self._state_probe is not None else {}
+        goal = obs.get("goal") if hasattr(obs, "get") else None
+        if isinstance(goal, str) and (not self._goals or self._goals[-1][1] != goal):
+            self._goals.append([len(self._jpegs), goal])
         self._jpegs.append(buf.tobytes())
         self._frame_size = (int(rgb.shape[1]), int(rgb.shape[0]))
         self._states.append(state)
@@ -459,10 +496,14 @@ class EpisodeRecorder:
             **self._answer_arrays(frames),
             **self._scene_arrays,
         }
-        for key in (self._states[0] if self._states else {}):
-            arrays[key] = np.stack([s[key] for s in self._states])
+        for key in (self._states[0] if self._states else {}):  # a frame without a key keeps the previous value
+            rows, value = [], self._states[0][key]
+            for state in self._states:
+                value = state.get(key, value)
+                rows.append(value)
+            arrays[key] = np.stack(rows)
         header = {**self.header, "task": self.task, **self._scene_header, "map_answers": self._has_answers,
-                  "queries": list(self._queries),
+                  "queries": list(self._queries), "goal_changes": [g for g in self._goals[1:] if g[0] < frames],
                   "answer_events": [e for e in self._events if e[0] < frames], "steps": steps,
                   "frame_size": list(self._frame_size)}
         if self.broken:
@@ -471,25 +512,44 @@ class EpisodeRecorder:
             header[key] = value
         return Recording(header, arrays)
 
-    def wants(self, status: str, success: bool) -> bool:
-        """Whether the mode asks for this outcome to be written."""
-        return self.mode == "all" or (self.mode == "failures" and (status != "ok" or not success))
+    def wants(self, status: str, success: bool) -> str | None:
+        """Why the mode asks for this outcome to be written (the header's ``recorded_as``:
+        ``"all"``, ``"failure"``, ``"example success"``: the first success of this suite and agent
+        label), or None when it does not."""
+        failed = status != "ok" or not success
+        if self.mode == "all":
+            return "all"
+        if self.mode != "failures":
+            return None
+        if failed:
+            return "failure"
+        return None if success_marker(self.path.parent, self.header).exists() else "example success"
 
-    def finish(self, *, status: str, metrics: Mapping | None = None, error: str | None = None) -> list[Path]:
+    def finish(self, *, status: str, metrics: Mapping | None = None, error: str | None = None,
+               extras: Mapping | None = None) -> list[Path]:
         """Write the recording (and the final map, see :data:`MAP_BUDGET_BYTES`) if the mode
         asks for this outcome; returns the files written (none when it does not, or nothing
-        was recorded). Writing problems are logged, never raised."""
+        was recorded). ``extras``: the results record's extras, of which :data:`OUTCOME_EXTRAS`
+        (goal text, stop reason, success radius) go into the header. An example success also
+        writes its :func:`success_marker`. Writing problems are logged, never raised."""
         t0 = time.perf_counter()
         try:
             success = bool((metrics or {}).get("success", False))
-            if not self.wants(status, success):
+            why = self.wants(status, success)
+            if why is None:
                 return []
-            outcome = {"status": status, "success": success, "metrics": _jsonable(dict(metrics or {})), "error": error}
+            outcome = {"status": status, "success": success, "metrics": _jsonable(dict(metrics or {})), "error": error,
+                       "recorded_as": why,
+                       **{k: _jsonable(v) for k, v in dict(extras or {}).items() if k in OUTCOME_EXTRAS and v is not None}}
             rec = self.recording(outcome)
             if rec is None:
                 return []
             rec.header["map"] = self._save_map()
             self.written.append(save_recording(rec, self.path))
+            if why == "example success":
+                marker = success_marker(self.path.parent, self.header)
+                atomic_write_text(marker, json.dumps({"suite": self.header["suite"], "agent": _label(self.header),
+                                                      "recording": self.path.name}) + "\n")
             return list(self.written)
         except Exception as exc:  # disk full, a map that cannot be saved: the episode's record stands
             _LOG.warning("recording of %s not written: %s: %s", self.header.get("episode_id"), type(exc).__name__, exc)
@@ -539,6 +599,18 @@ def map_meta(mapper, agent: str | None = None) -> dict:
     if isinstance(agent, str) and agent:
         meta["agent"] = agent
     return meta
+
+
+def _label(header: Mapping) -> str:
+    return str(header.get("agent_label") or header["agent"])
+
+
+def success_marker(replays_dir: str | os.PathLike, header: Mapping) -> Path:
+    """The file in a replays folder that says which success of ``header``'s suite and agent
+    label the ``"failures"`` mode kept: ``.success__<suite>__<agent label>.json`` (each part
+    reduced to ``[A-Za-z0-9._-]``; hidden, so that listings of recordings and videos skip it)."""
+    part = [re.sub(r"[^A-Za-z0-9._-]+", "-", str(v)).strip("-.") or "x" for v in (header["suite"], _label(header))]
+    return Path(replays_dir) / f".success__{part[0]}__{part[1]}.json"
 
 
 def _jsonable(value):

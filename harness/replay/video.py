@@ -1,15 +1,17 @@
-"""Turning a recording into a video: the agent's camera beside a top-down view.
+"""Turning a recording into a video that plays in any browser.
 
-Each video frame (:func:`draw_frame`) is the camera frame of that step (left) beside a top-down
-view (right): for object search the floor plan with the path so far, the base and its heading,
-the goal object's box and success ring; for tabletop rearrangement the table, the line, every
-object where it started (hollow) and where it is now (filled; targets in colour) and the pushes
-so far. Both show what the map answered (the best region's box and median, or "not found"), and a
-text strip gives the goal, the step and the outcome. Drawn with OpenCV.
+:func:`render_video` draws each recorded frame (:func:`harness.replay.draw.draw_frame`: the goal,
+the camera beside a top-down view, the distance to success, the map's answer, the outcome) and
+writes H.264 in an MP4 through PyAV (FFmpeg's libx264): 8-bit 4:2:0 (``yuv420p``) at even width
+and height, the ``moov`` atom first (``+faststart``) so a page plays it while it loads, and the
+last frame held for :data:`HOLD_LAST_S` so the outcome stays on screen. That is what Chromium,
+Firefox and Safari all play. (OpenCV's ``mp4v`` is MPEG-4 Part 2, which browsers do not decode;
+OpenCV's wheels cannot write H.264.) Without PyAV (or a PyAV without libx264) the video is a GIF
+(Pillow) instead, and the log says why and what to install.
 
-:func:`render_video` writes MP4 through ``cv2.VideoWriter`` (``mp4v``); when that writer cannot
-be opened, a GIF through Pillow. :func:`render_missing_videos` renders every recording of a run
-folder that has no video yet.
+:func:`render_missing_videos` renders every recording of a run folder that has no playable video
+yet: none at all, or an MP4 that is not H.264 (an ``mp4v`` one from an older harness), found by
+probing its codec (:func:`video_codec`).
 """
 
 from __future__ import annotations
@@ -18,30 +20,32 @@ import io
 import logging
 import math
 import os
+import tempfile
+from fractions import Fraction
 from pathlib import Path
 
-import cv2
 import numpy as np
 
 from conceptfusion.errors import ConceptFusionError, MissingDependencyError
 from conceptfusion.io_utils import atomic_write_bytes
+from harness.replay.draw import Renderer
 from harness.replay.record import Recording, is_recording_file, load_recording
 from harness.report.paths import REPLAYS_DIR, VIDEO_SUFFIXES
 
-__all__ = ["draw_frame", "render_video", "render_missing_videos", "render_videos_of", "video_path", "default_fps"]
+__all__ = ["CODEC", "CRF", "HOLD_LAST_S", "render_video", "render_missing_videos", "render_videos_of", "video_path",
+           "video_codec", "default_fps"]
 
 _LOG = logging.getLogger(__name__)
 
-_H = 240  # panel height (px)
-_CAM_W = 320
-_TOP_W = 320
-_STRIP = 60  # text rows under the panels
-_FONT = cv2.FONT_HERSHEY_SIMPLEX
-# BGR colours
-_WHITE, _BLACK, _GREY, _DARK = (255, 255, 255), (0, 0, 0), (170, 170, 170), (90, 90, 90)
-_PATH, _ROBOT, _START = (200, 110, 30), (40, 40, 220), (60, 170, 60)
-_GOAL, _ANSWER, _PUSH = (40, 40, 200), (200, 40, 200), (200, 160, 0)
-_TABLE, _LINE = (120, 160, 200), (0, 220, 240)
+CODEC = "h264"
+"""The codec of the videos written here (as FFmpeg names it)."""
+CRF = 20
+"""libx264's constant rate factor: lower is sharper and larger; 20 keeps the overlay's small text
+crisp at about 3-6 kB a frame."""
+HOLD_LAST_S = 2.0
+"""Seconds the last frame (outcome and stop reason) stays on screen before the video ends."""
+_PRESET = "veryfast"
+_warned_gif = False
 
 
 def default_fps(recording: Recording) -> float:
@@ -60,216 +64,67 @@ def video_path(recording_path: str | os.PathLike) -> Path | None:
     return None
 
 
-class _View:
-    """World xy (metres) -> pixel of a panel, equal scale, y up."""
+def video_codec(path: str | os.PathLike) -> str | None:
+    """The codec of the first video stream of the file at ``path`` as FFmpeg names it (``"h264"``,
+    ``"mpeg4"`` for OpenCV's ``mp4v``, ``"gif"``), or None when the file is not a readable video.
 
-    def __init__(self, lo, hi, width: int, height: int, pad: int = 8) -> None:
-        lo, hi = np.asarray(lo, np.float64), np.asarray(hi, np.float64)
-        span = np.maximum(hi - lo, 1e-6)
-        self.scale = min((width - 2 * pad) / span[0], (height - 2 * pad) / span[1])
-        self.off = np.array([(width - span[0] * self.scale) / 2, (height - span[1] * self.scale) / 2])
-        self.lo, self.height = lo, height
-
-    def px(self, xy) -> np.ndarray:
-        """(..., 2) world -> (..., 2) int32 pixel."""
-        xy = np.asarray(xy, np.float64)
-        u = self.off[0] + (xy[..., 0] - self.lo[0]) * self.scale
-        v = self.height - (self.off[1] + (xy[..., 1] - self.lo[1]) * self.scale)
-        return np.stack([u, v], axis=-1).round().astype(np.int32)
-
-    def pt(self, xy) -> tuple[int, int]:
-        u, v = self.px(np.asarray(xy, np.float64)[:2])
-        return int(u), int(v)
-
-
-def _text(img, text: str, org, color=_BLACK, scale: float = 0.4) -> None:
-    cv2.putText(img, text, org, _FONT, scale, color, 1, cv2.LINE_AA)
-
-
-def _fit(text: str, width: int, scale: float = 0.4) -> str:
-    while text and cv2.getTextSize(text, _FONT, scale, 1)[0][0] > width:
-        text = text[:-2]
-        if len(text) > 3:
-            text = text[:-1] + "~"
-    return text
-
-
-class _Renderer:
-    """Static parts (background, view) computed once per recording; :meth:`frame` per step."""
-
-    def __init__(self, rec: Recording) -> None:
-        self.rec, a = rec, rec.arrays
-        self.search = "pose_t3" in a
-        self.rearrange = "objects_tn2" in a
-        self.actions = a["actions_ta"]
-        self.pushes = self._pushes()
-        self.bg = np.full((_H, _TOP_W, 3), 255, np.uint8)
-        lo, hi = self._bounds()
-        self.view = _View(lo, hi, _TOP_W, _H)
-        if self.search and "floor_blocked_hw" in a:
-            self._draw_floor()
-        elif self.rearrange and "table_xy_22" in a:
-            t = a["table_xy_22"]
-            cv2.rectangle(self.bg, self.view.pt(t[0]), self.view.pt(t[1]), _TABLE, -1)
-        if "line_22" in a:
-            cv2.line(self.bg, self.view.pt(a["line_22"][0]), self.view.pt(a["line_22"][1]), _LINE, 3, cv2.LINE_AA)
-        if "goal_box_23" in a:
-            box = a["goal_box_23"]
-            ring = float(rec.header.get("success_distance", 1.0))
-            centre = (box[0, :2] + box[1, :2]) / 2
-            r = int(round((ring + float(np.max(box[1, :2] - box[0, :2])) / 2) * self.view.scale))
-            cv2.circle(self.bg, self.view.pt(centre), r, (200, 200, 255), 1, cv2.LINE_AA)
-            cv2.rectangle(self.bg, self.view.pt(box[0, :2]), self.view.pt(box[1, :2]), _GOAL, 2)
-        if self.rearrange:
-            radius = a.get("object_radius_n", np.full(a["objects_tn2"].shape[1], 0.03, np.float32))
-            for xy, rad in zip(a["objects_tn2"][0], radius):
-                cv2.circle(self.bg, self.view.pt(xy), max(2, int(rad * self.view.scale)), _DARK, 1, cv2.LINE_AA)
-
-    def _pushes(self) -> np.ndarray | None:
-        """Rearrange: per step the push segment (start xy, end xy), NaN for a stop; (T, 4)."""
-        if not self.rearrange or self.actions.ndim != 2 or self.actions.shape[1] < 5:
-            return None
-        a = self.actions.astype(np.float64)
-        end = a[:, :2] + a[:, 3:4] * np.stack([np.cos(a[:, 2]), np.sin(a[:, 2])], axis=1)
-        seg = np.concatenate([a[:, :2], end], axis=1)
-        seg[a[:, 4] > 0.5] = np.nan
-        return seg
-
-    def _bounds(self) -> tuple[np.ndarray, np.ndarray]:
-        a, pts = self.rec.arrays, []
-        if self.search:
-            if "floor_blocked_hw" in a:
-                floor = self.rec.header.get("floor", {})
-                origin, cell = np.asarray(floor.get("origin", (0, 0)), np.float64), float(floor.get("cell", 0.05))
-                h, w = a["floor_blocked_hw"].shape
-                pts += [origin, origin + (w * cell, h * cell)]
-            pts += list(a["pose_t3"][:, :2])
-            if "goal_box_23" in a:
-                pts += [a["goal_box_23"][0, :2], a["goal_box_23"][1, :2]]
-        elif self.rearrange:
-            if "table_xy_22" in a:
-                pts += list(a["table_xy_22"] + [[-0.05, -0.05], [0.05, 0.05]])
-            pts += list(a["objects_tn2"].reshape(-1, 2))
-        pts = [p for p in pts if np.all(np.isfinite(p))]
-        if not pts:
-            return np.array([-1.0, -1.0]), np.array([1.0, 1.0])
-        pts = np.asarray(pts, np.float64)
-        return pts.min(axis=0), pts.max(axis=0)
-
-    def _draw_floor(self) -> None:
-        a, floor = self.rec.arrays, self.rec.header.get("floor", {})
-        blocked = a["floor_blocked_hw"]
-        origin, cell = np.asarray(floor.get("origin", (0, 0)), np.float64), float(floor.get("cell", 0.05))
-        h, w = blocked.shape
-        # the grid's pixel rectangle (row 0 is the lowest y, drawn at the bottom), pasted clipped
-        (gu0, gv1), (gu1, gv0) = self.view.pt(origin), self.view.pt(origin + (w * cell, h * cell))
-        if gu1 - gu0 < 1 or gv1 - gv0 < 1:
-            return
-        img = np.where(blocked[::-1, :, None], np.uint8(110), np.uint8(255)).repeat(3, axis=2)
-        full = cv2.resize(img, (gu1 - gu0, gv1 - gv0), interpolation=cv2.INTER_AREA)
-        u0, v0, u1, v1 = max(gu0, 0), max(gv0, 0), min(gu1, _TOP_W), min(gv1, _H)
-        if u1 > u0 and v1 > v0:
-            self.bg[v0:v1, u0:u1] = full[v0 - gv0:v1 - gv0, u0 - gu0:u1 - gu0]
-
-    # per frame -------------------------------------------------------------------------------
-
-    def answers(self, t: int) -> list[tuple[str, int, np.ndarray, np.ndarray]]:
-        a = self.rec.arrays
-        return [(q, int(a["answer_found_tq"][t, j]), a["answer_median_tq3"][t, j], a["answer_box_tq23"][t, j])
-                for j, q in enumerate(self.rec.queries)]
-
-    def topdown(self, t: int) -> np.ndarray:
-        img, a, v = self.bg.copy(), self.rec.arrays, self.view
-        if self.search:
-            path = v.px(a["pose_t3"][: t + 1, :2])
-            if len(path) > 1:
-                cv2.polylines(img, [path.reshape(-1, 1, 2)], False, _PATH, 2, cv2.LINE_AA)
-            cv2.circle(img, tuple(int(c) for c in path[0]), 4, _START, -1, cv2.LINE_AA)
-            x, y, yaw = a["pose_t3"][t]
-            r = max(3, int(0.25 * v.scale))
-            cv2.circle(img, v.pt((x, y)), r, _ROBOT, 2, cv2.LINE_AA)
-            cv2.line(img, v.pt((x, y)), v.pt((x + 0.45 * math.cos(yaw), y + 0.45 * math.sin(yaw))), _ROBOT, 2, cv2.LINE_AA)
-        if self.rearrange:
-            targets = set(self.rec.header.get("objects", {}).get("targets", []))
-            radius = a.get("object_radius_n", np.full(a["objects_tn2"].shape[1], 0.03, np.float32))
-            for i, (xy, rad) in enumerate(zip(a["objects_tn2"][t], radius)):
-                color = _GOAL if i in targets else _GREY
-                cv2.circle(img, v.pt(xy), max(2, int(rad * v.scale)), color, -1, cv2.LINE_AA)
-            if self.pushes is not None:
-                for k, seg in enumerate(self.pushes[:t]):
-                    if np.all(np.isfinite(seg)):
-                        cv2.arrowedLine(img, v.pt(seg[:2]), v.pt(seg[2:]), _ROBOT if k == t - 1 else _PUSH, 2, cv2.LINE_AA,
-                                        tipLength=0.2)
-        for _, found, median, box in self.answers(t):
-            if found == 1 and np.all(np.isfinite(box)):
-                cv2.rectangle(img, v.pt(box[0, :2]), v.pt(box[1, :2]), _ANSWER, 1, cv2.LINE_AA)
-                c = v.pt(median[:2])
-                cv2.drawMarker(img, c, _ANSWER, cv2.MARKER_CROSS, 12, 2, cv2.LINE_AA)
-        return img
-
-    def strip(self, t: int, width: int) -> np.ndarray:
-        h, rec = self.rec.header, self.rec
-        img = np.full((_STRIP, width, 3), 245, np.uint8)
-        last = t == rec.num_frames - 1
-        outcome = ""
-        if last:
-            outcome = "SUCCESS" if h.get("success") else ("FAILED" if h.get("status", "ok") == "ok" else str(h.get("status")).upper())
-        status = f"step {t}/{rec.num_frames - 1}  {h.get('agent_label', h.get('agent'))}  {h.get('episode_id')}"
-        _text(img, _fit(status, width - 80), (6, 16))
-        _text(img, _fit(f"goal: {h.get('goal', h.get('instruction', ''))}", width - 12), (6, 34))
-        if outcome:
-            _text(img, outcome, (width - 74, 16), (0, 140, 0) if h.get("success") else (0, 0, 200), 0.45)
-        parts = []
-        for q, found, median, _ in self.answers(t):
-            if found == 1:
-                parts.append(f"'{q}': found at ({median[0]:.2f}, {median[1]:.2f})")
-            elif found == 0:
-                parts.append(f"'{q}': not found")
-        if parts:
-            text = "map: " + "; ".join(parts)
-        else:
-            text = "map: not asked yet" if h.get("map_answers", bool(rec.queries)) else "map: the agent keeps none"
-        _text(img, _fit(text, width - 12), (6, 52), _ANSWER if parts else _DARK)
-        return img
-
-    def frame(self, t: int) -> np.ndarray:
-        """Video frame ``t``: (240 + 60, 640, 3) uint8 BGR."""
-        cam_rgb = self.rec.frame_rgb(t)
-        cam = cv2.resize(np.ascontiguousarray(cam_rgb[:, :, ::-1]), (_CAM_W, _H), interpolation=cv2.INTER_LINEAR)
-        top = self.topdown(t)
-        cv2.line(top, (0, 0), (0, _H - 1), _DARK, 1)
-        panels = np.concatenate([cam, top], axis=1)
-        return np.concatenate([panels, self.strip(t, panels.shape[1])], axis=0)
-
-
-def draw_frame(recording: Recording, t: int) -> np.ndarray:
-    """Video frame ``t`` of a recording: camera beside top-down view over a text strip.
-
-    Shape:
-        returns (300, 640, 3) uint8, RGB.
+    Raises:
+        MissingDependencyError: PyAV is not installed.
     """
-    if not 0 <= t < recording.num_frames:
-        raise IndexError(f"frame: expected an index in [0, {recording.num_frames}), got {t}")
-    return np.ascontiguousarray(_Renderer(recording).frame(t)[:, :, ::-1])
-
-
-def _write_mp4(frames, path: Path, fps: float, size: tuple[int, int]) -> bool:
-    tmp = path.with_name(f".{path.stem}.tmp{os.getpid()}.mp4")
-    writer = cv2.VideoWriter(str(tmp), cv2.VideoWriter_fourcc(*"mp4v"), float(fps), size)
-    if not writer.isOpened():
-        writer.release()
-        tmp.unlink(missing_ok=True)
-        return False
+    av = _import_av()
     try:
-        for f in frames:
-            writer.write(f)
-    finally:
-        writer.release()
-    if not tmp.is_file() or tmp.stat().st_size == 0:
-        tmp.unlink(missing_ok=True)
-        return False
-    os.replace(tmp, path)
-    return True
+        with av.open(str(path)) as container:
+            streams = container.streams.video
+            return str(streams[0].codec_context.name) if streams else None
+    except (av.FFmpegError, OSError, ValueError):
+        return None
+
+
+def _import_av():
+    try:
+        import av
+    except ImportError as exc:
+        raise MissingDependencyError("an H.264 replay video needs PyAV (FFmpeg with libx264): pip install av") from exc
+    return av
+
+
+def _h264_encoder(av) -> None:
+    """Raise MissingDependencyError when this PyAV has no libx264 encoder (a build against a
+    system FFmpeg without it); PyPI's wheels carry it."""
+    try:
+        av.codec.Codec("libx264", "w")
+    except ValueError as exc:  # av's UnknownCodecError is a ValueError
+        raise MissingDependencyError("this PyAV has no libx264 encoder, so it cannot write H.264; "
+                                     "pip install --force-reinstall av (PyPI's wheels carry libx264)") from exc
+
+
+def _write_mp4(frames, path: Path, fps: float, size: tuple[int, int]) -> None:
+    """Encode BGR frames of ``size`` (width, height; both even) to H.264 in MP4 at ``path``."""
+    av = _import_av()
+    _h264_encoder(av)
+    rate = Fraction(fps).limit_denominator(1000)
+    with tempfile.TemporaryDirectory(prefix="cf-video-") as tmp:
+        # faststart rewrites the file to move the moov atom first: it needs a real file, so the
+        # video is encoded in a scratch folder and then written in place atomically
+        scratch = Path(tmp) / "video.mp4"
+        with av.open(str(scratch), "w", format="mp4", container_options={"movflags": "+faststart"}) as container:
+            stream = container.add_stream("libx264", rate=rate)
+            stream.width, stream.height, stream.pix_fmt = size[0], size[1], "yuv420p"
+            stream.options = {"crf": str(CRF), "preset": _PRESET}
+            packets = []
+            for i, bgr in enumerate(frames):
+                frame = av.VideoFrame.from_ndarray(np.ascontiguousarray(bgr), format="bgr24")
+                frame.pts = i
+                packets += stream.encode(frame)
+            packets += stream.encode()  # flush
+            if packets:
+                # the last frame shows for HOLD_LAST_S: the track ends at the last packet in decode
+                # order plus its duration, and with B-frames that packet is not the last one shown
+                last, shown_last = packets[-1], max(p.pts for p in packets)
+                last.duration = int(round(HOLD_LAST_S / float(last.time_base))) + shown_last - last.pts
+            for packet in packets:
+                container.mux(packet)
+        atomic_write_bytes(path, scratch.read_bytes())
 
 
 def _write_gif(frames, path: Path, fps: float) -> None:
@@ -278,8 +133,10 @@ def _write_gif(frames, path: Path, fps: float) -> None:
     except ImportError as exc:
         raise MissingDependencyError("a GIF replay needs Pillow: pip install pillow") from exc
     images = [Image.fromarray(np.ascontiguousarray(f[:, :, ::-1])) for f in frames]
+    durations = [int(round(1000 / fps))] * len(images)
+    durations[-1] = max(durations[-1], int(round(1000 * HOLD_LAST_S)))
     buf = io.BytesIO()
-    images[0].save(buf, format="GIF", save_all=True, append_images=images[1:], duration=int(round(1000 / fps)), loop=0)
+    images[0].save(buf, format="GIF", save_all=True, append_images=images[1:], duration=durations, loop=0)
     atomic_write_bytes(path, buf.getvalue())
 
 
@@ -288,15 +145,16 @@ def render_video(recording: Recording | str | os.PathLike, out: str | os.PathLik
     """Render a recording (or the recording file at a path) to a video; returns its path.
 
     ``out``: the video file, ``.mp4`` or ``.gif`` (default: the recording's path with ``.mp4``;
-    needed when ``recording`` is a :class:`Recording`). An ``.mp4`` goes through
-    ``cv2.VideoWriter`` (``mp4v``); when that writer cannot be opened, the video is written as a
-    GIF (Pillow) beside it instead, and that path is returned. One video frame per recorded frame,
-    at ``fps`` (default :func:`default_fps`).
+    needed when ``recording`` is a :class:`Recording`). An ``.mp4`` is H.264 through PyAV (see the
+    module docstring); without PyAV or its libx264 it is written as a GIF beside it instead (the
+    log says why), and that path is returned. One video frame per recorded frame, at ``fps``
+    (default :func:`default_fps`), the last one held for :data:`HOLD_LAST_S`.
 
     Raises:
         ValueError: ``out`` with another ending, ``fps`` <= 0, or no ``out`` for a Recording.
         ReplayFormatError, MissingFileError: from :func:`~harness.replay.record.load_recording`.
     """
+    global _warned_gif
     if isinstance(recording, Recording):
         rec = recording
         if out is None:
@@ -311,7 +169,7 @@ def render_video(recording: Recording | str | os.PathLike, out: str | os.PathLik
     fps = default_fps(rec) if fps is None else float(fps)
     if not math.isfinite(fps) or fps <= 0:
         raise ValueError(f"fps: expected a number > 0, got {fps!r}")
-    renderer = _Renderer(rec)
+    renderer = Renderer(rec)
     first = renderer.frame(0)
     size = (first.shape[1], first.shape[0])
     out.parent.mkdir(parents=True, exist_ok=True)
@@ -322,30 +180,50 @@ def render_video(recording: Recording | str | os.PathLike, out: str | os.PathLik
             yield renderer.frame(t)
 
     if out.suffix.lower() == ".mp4":
-        if _write_mp4(frames(), out, fps, size):
+        try:
+            _write_mp4(frames(), out, fps, size)
             return out
-        _LOG.info("the MP4 writer did not open; writing a GIF instead")
+        except MissingDependencyError as exc:
+            (_LOG.warning if not _warned_gif else _LOG.debug)("replay videos are GIFs, not MP4: %s", exc)
+            _warned_gif = True
         out = out.with_suffix(".gif")
     _write_gif(list(frames()), out, fps)
     return out
 
 
+def _playable(video: Path) -> bool:
+    """Whether an existing video plays in browsers: a GIF, or an MP4 holding H.264. Without PyAV
+    an MP4 cannot be probed, and no H.264 could replace it anyway: it counts as playable."""
+    if video.suffix.lower() != ".mp4":
+        return True
+    try:
+        return video_codec(video) == CODEC
+    except MissingDependencyError:
+        return True
+
+
 def render_missing_videos(run_dir: str | os.PathLike) -> list[Path]:
-    """Render a video for every recording in ``run_dir/replays/`` that has none yet; returns the
-    videos written. A recording that cannot be read is logged and skipped (the report goes on)."""
+    """Render a video for every recording in ``run_dir/replays/`` that has no playable one yet
+    (none, or an MP4 that is not H.264: an ``mp4v`` video of an older harness is replaced);
+    returns the videos written. A recording that cannot be read is logged and skipped (the
+    report goes on)."""
     folder = Path(run_dir) / REPLAYS_DIR
     if not folder.is_dir():
         return []
-    return render_videos_of(p for p in sorted(folder.glob("*.npz")) if video_path(p) is None)
+    todo = []
+    for path in sorted(folder.glob("*.npz")):
+        video = video_path(path)
+        if video is None or not _playable(video):
+            todo.append(path)
+    return render_videos_of(todo)
 
 
 def render_videos_of(paths) -> list[Path]:
     """Render the video of every recording file among ``paths`` (what
     :meth:`~harness.replay.record.EpisodeRecorder.finish` returns); returns the videos written.
     Episode jobs call it in their worker, so that a run's videos are made alongside its episodes
-    rather than one after another by the report (35-40 s of one core for the default
-    comparison's failures). A recording that cannot be drawn is logged and skipped; the report
-    tries again (:func:`render_missing_videos`)."""
+    rather than one after another by the report. A recording that cannot be drawn is logged and
+    skipped; the report tries again (:func:`render_missing_videos`)."""
     written = []
     for path in paths:
         path = Path(path)

@@ -96,8 +96,9 @@ class RunConfig:
     """Modules imported (in every worker too) before agents are built (``--import``): they register
     agents by name with :func:`agents.registry.register_agent`."""
     record: str = "failures"
-    """Episode recordings (``--record``): ``"failures"`` (the episodes that failed), ``"all"`` or
-    ``"none"``; written to ``RUN/replays/`` (:mod:`harness.replay`). Stored in ``run.json`` beside
+    """Episode recordings (``--record``): ``"failures"`` (the episodes that failed, and the first
+    successful one of each suite and agent to compare them with), ``"all"`` or ``"none"``; written
+    to ``RUN/replays/`` (:mod:`harness.replay`). Stored in ``run.json`` beside
     the settings, not in them: results do not depend on it, and a run may resume with another."""
 
     def __post_init__(self) -> None:

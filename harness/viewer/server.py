@@ -12,7 +12,8 @@ Endpoints (``?map=`` optional on each ``/api`` one):
 =====================  ======  ============================================================
 ``/``                  GET     the page (``static/index.html``)
 ``/static/PATH``       GET     the page's scripts, the vendored three.js
-``/files/PATH``        GET     a file of the map's folder (a replay video beside the map)
+``/files/PATH``        GET     a file of the map's folder (a replay video beside the map); one
+                              byte range (``Range: bytes=a-b``) answered 206, so a video seeks
 ``/api/info``          GET     map facts (:meth:`MapQueries.info`) and the folder's other maps
 ``/api/points``        GET     positions (M, 3) float32 then colours (M, 3) uint8
 ``/api/query``         POST    ``{"text": "red mug"}`` -> the answer (regions, heat, reason)
@@ -29,6 +30,7 @@ import dataclasses
 import json
 import logging
 import os
+import re
 import threading
 import zipfile
 from collections import OrderedDict
@@ -61,6 +63,7 @@ _TYPES = {".html": "text/html; charset=utf-8", ".js": "text/javascript; charset=
 _CSP = ("default-src 'self'; img-src 'self' data: blob:; media-src 'self'; style-src 'self' 'unsafe-inline'; "
         "connect-src 'self'; object-src 'none'; base-uri 'none'; frame-ancestors 'none'")
 _MAX_JSON_BYTES = 64 * 1024
+_RANGE = re.compile(r"bytes=(\d*)-(\d*)")
 _OPEN_MAPS = 2
 _MAX_LISTED = 500
 
@@ -294,10 +297,12 @@ def _handler(viewer: ViewerServer):
             _log.debug("%s " + fmt, self.address_string(), *args)
 
         # ---------------------------------------------------------- answers
-        def _send(self, status: int, body: bytes, ctype: str) -> None:
+        def _send(self, status: int, body: bytes, ctype: str, headers: dict | None = None) -> None:
             self.send_response(status)
             self.send_header("Content-Type", ctype)
             self.send_header("Content-Length", str(len(body)))
+            for key, value in (headers or {}).items():
+                self.send_header(key, value)
             self.send_header("Cache-Control", "no-store")
             self.send_header("X-Content-Type-Options", "nosniff")
             self.send_header("Content-Security-Policy", _CSP)
@@ -316,7 +321,22 @@ def _handler(viewer: ViewerServer):
                 self._send(status, (message + "\n").encode("utf-8"), "text/plain; charset=utf-8")
 
         def _file(self, path: Path) -> None:
-            self._send(200, path.read_bytes(), _TYPES.get(path.suffix.lower(), "application/octet-stream"))
+            """A whole file (200), or the one byte range a ``Range`` header asks for (206; a range
+            past the end 416): a browser seeks in a video by ranges. Several ranges get the whole
+            file, as HTTP allows."""
+            body, ctype = path.read_bytes(), _TYPES.get(path.suffix.lower(), "application/octet-stream")
+            size, match = len(body), _RANGE.fullmatch(self.headers.get("Range", "").strip())
+            if match is None or match.groups() == ("", ""):
+                return self._send(200, body, ctype, {"Accept-Ranges": "bytes"})
+            first, last = match.groups()
+            if first:
+                start, end = int(first), min(int(last), size - 1) if last else size - 1
+            else:  # "bytes=-N": the last N bytes
+                start, end = max(size - int(last), 0), size - 1
+            if start >= size or start > end:
+                self.close_connection = True
+                return self._send(416, b"", "text/plain; charset=utf-8", {"Content-Range": f"bytes */{size}"})
+            self._send(206, body[start:end + 1], ctype, {"Accept-Ranges": "bytes", "Content-Range": f"bytes {start}-{end}/{size}"})
 
         # ---------------------------------------------------------- requests
         def _parse(self) -> None:

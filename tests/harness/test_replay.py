@@ -1,5 +1,7 @@
-"""Episode recordings: what a run records (all, failures only), that recording leaves the
-episode's results as they were, the file format round trip and its errors, and the videos."""
+"""Episode recordings: what a run records (all; failures with one success per suite and agent),
+that recording leaves the episode's results as they were, the file format round trip and its
+errors, and the videos: H.264 MP4 one frame per step, the goal on the first frame, what each
+frame says, the GIF fallback without PyAV, old mp4v videos replaced."""
 
 from __future__ import annotations
 
@@ -14,10 +16,13 @@ import pytest
 from agents.pusher import parse_push_instruction
 from conceptfusion.errors import HarnessError, MissingFileError, ReplayFormatError
 from harness.replay import record as record_module
+from harness.replay import video as video_module
+from harness.replay.captions import FrameText
+from harness.replay.draw import FRAME_SHAPE, Renderer, draw_frame
 from harness.replay.record import (
-    FORMAT_VERSION, EpisodeRecorder, Recording, load_recording, read_header, save_recording,
+    FORMAT_VERSION, EpisodeRecorder, Recording, load_recording, read_header, save_recording, success_marker,
 )
-from harness.replay.video import draw_frame, render_missing_videos, render_video, video_path
+from harness.replay.video import HOLD_LAST_S, render_missing_videos, render_video, video_codec, video_path
 from harness.report.paths import MAP_SUFFIX, REPLAYS_DIR, replay_stem
 from harness.runner.run import RunConfig, episode_jobs, run_suites
 from harness.runner.suites import get_suite
@@ -114,17 +119,38 @@ def test_a_search_recording_holds_the_path_floor_plan_and_goal(search_run):
     assert blocked.any() and r.header["goal"] == episode.instruction and r.header["map_answers"] is False
 
 
-def test_record_failures_writes_only_the_failed_episodes(tmp_path):
-    config = RunConfig(suites=("regression-rearrange",), agents=("oracle-pusher", "random-pusher"), limit=2, backend="serial")
+def test_record_failures_keeps_every_failure_and_one_success_per_suite_and_agent(tmp_path):
+    config = RunConfig(suites=("regression-rearrange",), agents=("oracle-pusher", "random-pusher"), limit=3, backend="serial")
     assert config.record == "failures"
     records = run_suites(config, tmp_path, progress=False)
-    outcomes = {rec["metrics"]["success"] for rec in records}
-    assert outcomes == {True, False}, "the test needs a success and a failure"
-    for rec in records:
-        assert _recording_path(tmp_path, rec).is_file() == (not rec["metrics"]["success"]), rec["agent"]
-    written = sorted(p.name for p in (tmp_path / REPLAYS_DIR).iterdir())
-    failed = [replay_stem(r) for r in records if not r["metrics"]["success"]]
-    assert written == sorted([f"{stem}.npz" for stem in failed] + [f"{stem}.mp4" for stem in failed])  # videos made in the worker
+    wins = [r for r in records if r["metrics"]["success"]]
+    assert len(wins) >= 2 and any(not r["metrics"]["success"] for r in records), "the test needs 2 successes and a failure"
+    assert {r["agent"] for r in wins} == {"oracle-pusher"}
+    kept = [r for r in records if _recording_path(tmp_path, r).is_file()]
+    failed = [r for r in records if not r["metrics"]["success"]]
+    (example,) = [r for r in kept if r["metrics"]["success"]]  # one success of the oracle, not one per episode
+    assert sorted(map(replay_stem, kept)) == sorted(map(replay_stem, failed + [example]))
+    assert read_header(_recording_path(tmp_path, example))["recorded_as"] == "example success"
+    assert {read_header(_recording_path(tmp_path, r))["recorded_as"] for r in failed} == {"failure"}
+    marker = success_marker(tmp_path / REPLAYS_DIR, {"suite": "regression-rearrange", "agent": "oracle-pusher"})
+    assert json.loads(marker.read_text())["recording"] == f"{replay_stem(example)}.npz"
+    listed = sorted(p.name for p in (tmp_path / REPLAYS_DIR).iterdir() if not p.name.startswith("."))
+    assert listed == sorted(f"{replay_stem(r)}{s}" for r in kept for s in (".npz", ".mp4"))  # videos made in the worker
+
+
+def test_an_example_success_already_in_the_folder_is_not_recorded_again(tmp_path):
+    def recorder(name, agent="a"):
+        rec = EpisodeRecorder("some_task", {"suite": "s", "agent": agent, "episode_id": name, "seed": 0}, tmp_path / f"{name}.npz")
+        rec.begin(None, {"rgb": np.zeros((4, 4, 3), np.uint8)}, {})
+        return rec
+
+    assert recorder("first").mode == "failures"
+    assert [p.name for p in recorder("first").finish(status="ok", metrics={"success": True})] == ["first.npz"]
+    assert recorder("second").finish(status="ok", metrics={"success": True}) == []  # another worker's, later
+    assert [p.name for p in recorder("other", agent="b").finish(status="ok", metrics={"success": True})] == ["other.npz"]
+    assert [p.name for p in recorder("lost").finish(status="ok", metrics={"success": False})] == ["lost.npz"]
+    assert read_header(tmp_path / "first.npz")["recorded_as"] == "example success"
+    assert read_header(tmp_path / "lost.npz")["recorded_as"] == "failure"
 
 
 def test_record_none_writes_nothing_and_a_bad_mode_names_the_flag(tmp_path):
@@ -210,7 +236,8 @@ def test_the_final_map_is_saved_only_under_the_budget(tmp_path, monkeypatch):
         rec.begin(None, {"rgb": np.zeros((4, 4, 3), np.uint8)}, {})
         return rec
 
-    assert recorder("ok").finish(status="ok", metrics={"success": True}) == []  # a success: nothing written
+    recorder("ok").finish(status="ok", metrics={"success": True})  # the example success of suite s, agent a
+    assert recorder("ok2").finish(status="ok", metrics={"success": True}) == []  # a second success: nothing written
     monkeypatch.setattr(record_module, "MAP_BUDGET_BYTES", 0)
     (only,) = recorder("over").finish(status="ok", metrics={"success": False})
     assert only.name == "over.npz" and "does not fit the 0 MB budget" in read_header(only)["map"]["skipped"]
@@ -288,45 +315,115 @@ def test_a_missing_recording_is_a_missing_file_error(tmp_path):
         load_recording(tmp_path)
 
 
-def test_a_video_has_one_frame_per_step_and_opens_in_opencv(search_run, tmp_path):
+def _decode(path) -> tuple[list[np.ndarray], dict]:
+    """Every frame of a video (RGB) and its stream facts, through PyAV."""
+    av = pytest.importorskip("av")
+    with av.open(str(path)) as container:
+        stream = container.streams.video[0]
+        facts = {"codec": stream.codec_context.name, "pix_fmt": stream.codec_context.pix_fmt,
+                 "seconds": container.duration / 1e6}
+        frames = [f.to_ndarray(format="rgb24") for f in container.decode(video=0)]
+    return frames, facts
+
+
+def test_a_video_is_h264_with_one_frame_per_step_and_the_goal_on_its_first_frame(search_run, tmp_path):
     run, (rec,) = search_run
     r = load_recording(_recording_path(run, rec))
     video = render_video(r, tmp_path / "search.mp4")
-    assert video.suffix == ".mp4"
-    cap = cv2.VideoCapture(str(video))
-    frames = []
-    while True:
-        ok, frame = cap.read()
-        if not ok:
-            break
-        frames.append(frame)
-    cap.release()
-    assert len(frames) == r.num_frames
-    assert frames[0].shape == (300, 640, 3)
+    frames, facts = _decode(video)
+    assert video.suffix == ".mp4" and facts["codec"] == "h264" == video_codec(video) and facts["pix_fmt"] == "yuv420p"
+    assert len(frames) == r.num_frames and frames[0].shape == FRAME_SHAPE and FRAME_SHAPE[0] % 2 == FRAME_SHAPE[1] % 2 == 0
+    steps = r.num_frames - 1  # the last frame stays on screen HOLD_LAST_S instead of one frame time (4 fps)
+    assert facts["seconds"] == pytest.approx(steps / 4 + HOLD_LAST_S, abs=0.05)
+    data = video.read_bytes()
+    assert 0 < data.find(b"moov") < data.find(b"mdat")  # faststart: the index first, so it plays while loading
+    assert cv2.VideoCapture(str(video)).read()[0]  # OpenCV reads it too
     first = draw_frame(r, 0)
-    assert first.shape == (300, 640, 3)
-    # the left panel is the camera: the video's first frame matches the drawn one up to compression
-    assert np.abs(frames[0][:240, :320].astype(int) - first[:240, :320, ::-1].astype(int)).mean() < 12
+    assert first.shape == FRAME_SHAPE
+    # the video's first frame matches the drawn one up to compression
+    assert np.abs(frames[0].astype(int) - first.astype(int)).mean() < 6
+    # its banner holds the goal: white text on the blue banner, starting at the left
+    banner = frames[0][:44].astype(int)
+    background = np.median(banner.reshape(-1, 3), axis=0)
+    text = np.abs(banner - background).sum(axis=2) > 150
+    assert r.header["goal"] and text.any(axis=0)[8:60].any() and text.mean() > 0.03
+    blank = r.header.copy()
+    blank["goal"] = blank["instruction"] = ""
+    other = Renderer(Recording(blank, r.arrays)).frame(0)[:44]
+    assert np.abs(other.astype(int)[:, :, ::-1] - frames[0][:44]).mean() > 5  # another goal: another banner
 
 
-def test_the_video_falls_back_to_a_gif_when_mp4_cannot_be_written(rearrange_run, tmp_path, monkeypatch):
+def test_each_frame_says_the_goal_the_distance_to_success_and_the_maps_answer(search_run):
+    run, (rec,) = search_run
+    r = load_recording(_recording_path(run, rec))
+    text = FrameText(r)
+    pose, box = r.arrays["pose_t3"], r.arrays["goal_box_23"]
+    # worked out here: the base's horizontal distance to the goal object's footprint at the start
+    gap = np.maximum(np.maximum(box[0, :2] - pose[0, :2], 0), pose[0, :2] - box[1, :2])
+    first = text.lines(0)
+    assert first[0] == f"Goal: {r.header['goal']}"
+    assert f"{np.linalg.norm(gap):.2f} m to goal (success within 1.00 m)" in first
+    assert "map: the agent keeps none" in first  # a random walker has no map
+    last = text.lines(r.num_frames - 1)
+    assert last[-1].startswith("SUCCESS" if rec["metrics"]["success"] else "FAILED")
+    assert f"{rec['metrics']['distance_to_goal']:.2f} m to goal (success within 1.00 m)" in last[2]
+    # a recording of an older harness (no per-frame distance or goal box): worked out from the pose
+    older = Recording(r.header, {k: v for k, v in r.arrays.items() if k not in ("goal_distance_t", "goal_box_t23")})
+    assert FrameText(older).lines(0) == first
+    # a chain reveals its next goal: the banner follows from that frame on
+    chain = Recording({**r.header, "goal_changes": [[3, "the sofa"]]}, r.arrays)
+    assert [FrameText(chain).goal(t) for t in (2, 3, 4)] == [f"Goal: {r.header['goal']}", "Goal: the sofa", "Goal: the sofa"]
+
+
+def test_the_last_frame_says_why_the_episode_stopped(tmp_path):
+    class Agent:
+        mapper = type("Mapper", (), {"answers": {}})()
+
+    class NotFound:
+        found, best, reason = False, None, "no region scored above the floor"
+
+    rec = EpisodeRecorder("some_task", {"suite": "s", "agent": "a", "episode_id": "e", "seed": 0, "instruction": "the red cup"},
+                          tmp_path / "e.npz", agent=Agent())
+    rec.begin(None, {"rgb": np.zeros((12, 16, 3), np.uint8)}, {})
+    Agent.mapper.answers = {"red cup": NotFound()}
+    rec.act(np.zeros(3, np.float32))
+    rec.step({"rgb": np.zeros((12, 16, 3), np.uint8)}, 0.0, {})
+    (path,) = rec.finish(status="ok", metrics={"success": False},
+                         extras={"stop_reason": "not_found", "goal": "the red cup", "path_xy": [[0, 0]]})
+    r = load_recording(path)
+    assert r.header["stop_reason"] == "not_found" and "path_xy" not in r.header  # only the outcome's extras
+    lines = FrameText(r).lines(1)
+    assert lines[0] == "Goal: the red cup"
+    assert "map: 'red cup' not found (no region scored above the floor)" in lines
+    assert lines[-1] == "FAILED: stop reason 'not_found'"
+    assert not any(line.startswith("FAILED") for line in FrameText(r).lines(0))  # the outcome on the last frame only
+
+
+def test_a_rearrangement_frame_says_how_far_each_target_is_past_the_line(rearrange_run):
+    run, records = rearrange_run
+    for rec in records:
+        r = load_recording(_recording_path(run, rec))
+        past = r.arrays["target_past_line_tk"]
+        names, targets = r.header["objects"]["names"], r.header["objects"]["targets"]
+        assert past.shape == (r.num_frames, len(targets)) and np.all(np.isfinite(past))
+        assert (bool(np.all(past[-1] >= 0.02)) and r.arrays["distractor_shift_t"][-1] < 0.05) == rec["metrics"]["success"]
+        lines = FrameText(r).lines(r.num_frames - 1)
+        for k, target in enumerate(targets):
+            d = past[-1, k]
+            where = f"{100 * d:.1f} cm past the line" if d >= 0 else f"{100 * -d:.1f} cm on the wrong side of the line"
+            assert f"{names[target]}: {where}" in " | ".join(lines)
+
+
+def test_the_video_falls_back_to_a_gif_without_pyav(rearrange_run, tmp_path, monkeypatch, caplog):
     Image = pytest.importorskip("PIL.Image")
     run, records = rearrange_run
     r = load_recording(_recording_path(run, records[0]))
-
-    class Closed:
-        def __init__(self, *args, **kwargs):
-            pass
-
-        def isOpened(self):
-            return False
-
-        def release(self):
-            pass
-
-    monkeypatch.setattr(cv2, "VideoWriter", Closed)
-    video = render_video(r, tmp_path / "push.mp4")
+    monkeypatch.setitem(__import__("sys").modules, "av", None)  # import av raises ImportError
+    monkeypatch.setattr(video_module, "_warned_gif", False)
+    with caplog.at_level(logging.WARNING):
+        video = render_video(r, tmp_path / "push.mp4")
     assert video == tmp_path / "push.gif" and not (tmp_path / "push.mp4").exists()
+    assert "replay videos are GIFs, not MP4" in caplog.text and "pip install av" in caplog.text
     with Image.open(video) as gif:
         assert gif.n_frames == r.num_frames
 
@@ -346,3 +443,22 @@ def test_render_missing_videos_renders_each_recording_once_and_skips_bad_files(r
     assert "broken.npz" in caplog.text and "x.map" not in caplog.text
     assert all(video_path(folder / f"{replay_stem(r)}.npz") is not None for r in records)
     assert render_missing_videos(tmp_path) == []  # nothing left to render
+
+
+def test_render_missing_videos_replaces_an_mp4v_video(rearrange_run, tmp_path):
+    run, records = rearrange_run
+    folder = tmp_path / REPLAYS_DIR
+    folder.mkdir()
+    src = _recording_path(run, records[0])
+    (folder / src.name).write_bytes(src.read_bytes())
+    old = folder / f"{replay_stem(records[0])}.mp4"
+    writer = cv2.VideoWriter(str(old), cv2.VideoWriter_fourcc(*"mp4v"), 1.0, (64, 48))  # what older harnesses wrote
+    assert writer.isOpened(), "this OpenCV cannot write mp4v"
+    for _ in range(3):
+        writer.write(np.zeros((48, 64, 3), np.uint8))
+    writer.release()
+    assert video_codec(old) == "mpeg4"
+    assert render_missing_videos(tmp_path) == [old]
+    frames, facts = _decode(old)
+    assert facts["codec"] == "h264" and len(frames) == load_recording(src).num_frames
+    assert render_missing_videos(tmp_path) == []

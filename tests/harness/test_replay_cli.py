@@ -6,10 +6,12 @@ import json
 import shutil
 
 import cv2
+import numpy as np
 import pytest
 
 from harness.cli import main
 from harness.replay.record import load_recording
+from harness.replay.video import video_codec
 from harness.report.paths import REPLAYS_DIR, replay_stem
 from harness.runner.run import RunConfig, run_suites
 
@@ -97,13 +99,19 @@ def test_run_refuses_a_bad_record_mode_before_writing_anything(tmp_path, capsys)
     assert not out.exists()
 
 
-def test_report_renders_the_videos_of_the_recordings(run_dir, tmp_path):
+def test_report_renders_the_missing_videos_and_replaces_mp4v_ones(run_dir, tmp_path):
     run, records = run_dir
     copy = tmp_path / "copy"
     shutil.copytree(run, copy)
     for video in (copy / REPLAYS_DIR).glob("*.mp4"):
         video.unlink()
+    old = copy / REPLAYS_DIR / f"{replay_stem(records[0])}.mp4"  # what an older harness wrote: browsers show it black
+    writer = cv2.VideoWriter(str(old), cv2.VideoWriter_fourcc(*"mp4v"), 1.0, (64, 48))
+    for _ in range(2):
+        writer.write(np.zeros((48, 64, 3), np.uint8))
+    writer.release()
+    assert video_codec(old) == "mpeg4"
     assert main(["report", str(copy)]) == 0
     for rec in records:
         video = copy / REPLAYS_DIR / f"{replay_stem(rec)}.mp4"
-        assert _frames(video) == rec["metrics"]["steps"] + 1
+        assert _frames(video) == rec["metrics"]["steps"] + 1 and video_codec(video) == "h264"
