@@ -110,7 +110,8 @@ def _write_mp4(frames, path: Path, fps: float, size: tuple[int, int]) -> None:
         with av.open(str(scratch), "w", format="mp4", container_options={"movflags": "+faststart"}) as container:
             stream = container.add_stream("libx264", rate=rate)
             stream.width, stream.height, stream.pix_fmt = size[0], size[1], "yuv420p"
-            stream.options = {"crf": str(CRF), "preset": _PRESET}
+            # one thread: episodes record in one worker per core, which libx264's own threads would crowd
+            stream.options = {"crf": str(CRF), "preset": _PRESET, "threads": "1"}
             packets = []
             for i, bgr in enumerate(frames):
                 frame = av.VideoFrame.from_ndarray(np.ascontiguousarray(bgr), format="bgr24")

@@ -6,7 +6,7 @@ its result record (see :mod:`harness.runner.results`). It never raises for what 
 the episode: an exception becomes ``status="failed"`` with the error, so a broken agent cannot
 stop a run. A job with ``record`` other than ``"none"`` and an ``out_dir`` follows the episode
 with an :class:`~harness.replay.record.EpisodeRecorder` and writes its recording into
-``out_dir/replays/`` (every episode, or only the failed ones); the recorder only reads, so the
+``out_dir/replays/`` (every episode, or the failed ones and one success per suite and agent), passing it the record's extras (goal, stop reason) for the video's last frame; the recorder only reads, so the
 episode's metrics are the same with recording on or off.
 """
 
@@ -351,7 +351,7 @@ def run_episode(job: EpisodeJob) -> dict:
         close_cached_envs()
         raise
     if recorder is not None:
-        written = recorder.finish(status=status, metrics=metrics, error=error)
+        written = recorder.finish(status=status, metrics=metrics, error=error, extras=extras)
         t_video = time.perf_counter()
         videos = render_videos_of(written)
         timings = {**timings, "record_s": recorder.seconds, **({"video_s": time.perf_counter() - t_video} if videos else {})}
