@@ -126,3 +126,24 @@ def test_wide_table_fits_its_box_until_a_group_is_shown(page, artifacts):
     page.save_screenshot(str(artifacts / "report_wide_table.png"))
     page.find_element(By.CSS_SELECTOR, ".groups[data-table='suite-query-open'] button.all").click()  # back to the default
     assert _wrap_widths(page, "suite-query-open")[2] == width
+
+
+def test_a_grouped_column_sorts_by_its_own_cells(page):
+    """In a two-row header a column's cell index is not its position in the body rows: the header
+    names its column (``data-col``)."""
+    table = page.find_element(By.ID, "suite-rearrange-v2")
+    steps = table.find_element(By.XPATH, ".//th[@data-group and normalize-space()='steps']")
+    col = int(steps.get_attribute("data-col"))
+    assert col != steps.get_property("cellIndex")
+
+    def column():
+        return page.execute_script("return Array.from(document.getElementById('suite-rearrange-v2').tBodies[0].rows)"
+                                   ".map(r => parseFloat(r.cells[arguments[0]].getAttribute('data-sort')))", col)
+
+    steps.click()
+    assert column() == sorted(column()) and steps.get_attribute("aria-sort") == "ascending"
+    steps.click()
+    assert column() == sorted(column(), reverse=True) and column()[0] == 90  # the random pusher's steps
+    agents = page.execute_script("return Array.from(document.getElementById('suite-rearrange-v2').tBodies[0].rows)"
+                                 ".map(r => r.cells[0].textContent)")
+    assert agents[0] == "random-pusher"
