@@ -6,8 +6,12 @@ Markdown report, so it holds every table of it, plus one table per suite with a 
 and reaches nothing outside itself: CSS and JavaScript are inline, figures are inline PNG data,
 and only the replay videos and maps are links to files beside the run (relative paths).
 
-Every table sorts by a click on a column header (again: the other way); a rate's interval is
-drawn as a small bar in its cell; the episode tables have a filter box.
+The page opens on the headline: a grid of cards, one per suite, each answering the suite's
+question (:mod:`harness.report.cards`) and linking its section. Every table sorts by a click on a
+column header (again: the other way); its first column (the agent) stays in view when a wide
+table scrolls sideways; a table with column groups has a two-row header and a button per group
+that shows or hides its columns (wide tables start with the headline's group only); a rate's
+interval is drawn as a small bar in its cell; the episode tables have a filter box.
 """
 
 from __future__ import annotations
@@ -20,7 +24,7 @@ import re
 from pathlib import Path
 
 from conceptfusion.io_utils import atomic_write_text
-from harness.report.document import Bullets, Cell, Figure, Heading, Paragraph, ReportDocument, Table
+from harness.report.document import Bullets, Card, Cards, Cell, Figure, Heading, Paragraph, ReportDocument, Table
 from harness.report.markdown import build_report, write_markdown
 
 __all__ = ["HTML_FILE", "render_html", "write_html", "write_html_report", "write_reports"]
@@ -40,7 +44,28 @@ a { color: var(--accent); }
 .table-wrap { overflow-x: auto; margin: 6px 0 10px; }
 table { border-collapse: collapse; font-size: 13px; }
 th, td { border: 1px solid var(--line); padding: 3px 8px; text-align: left; vertical-align: top; white-space: nowrap; }
-th { background: var(--head); cursor: pointer; user-select: none; position: sticky; top: 0; }
+th { background: var(--head); user-select: none; position: sticky; top: 0; }
+th[data-col] { cursor: pointer; } th.group { text-align: center; color: var(--muted); font-weight: 600; }
+[hidden] { display: none !important; }
+.pin { position: sticky; left: 0; z-index: 1; background: #fff; box-shadow: 1px 0 0 var(--line); }
+th.pin { background: var(--head); z-index: 2; }
+.groups { font-size: 12px; color: var(--muted); margin: 4px 0 2px; }
+.groups button { font: inherit; padding: 1px 8px; margin: 0 4px 4px 0; border: 1px solid var(--line); border-radius: 10px;
+                 background: #fff; color: var(--muted); cursor: pointer; }
+.groups button[aria-pressed="true"] { background: #e3ecfb; border-color: #9dbcf0; color: var(--fg); }
+.cards { display: grid; grid-template-columns: repeat(auto-fill, minmax(360px, 1fr)); gap: 10px; margin: 8px 0 4px; }
+.card { border: 1px solid var(--line); border-top: 4px solid #b8c0cc; border-radius: 6px; padding: 8px 10px;
+        font-size: 13px; line-height: 1.35; }
+.card.tone-better { border-top-color: #2e9e5b; } .card.tone-worse { border-top-color: var(--bad); }
+.card.tone-same { border-top-color: #8a94a6; }
+.card header { display: flex; justify-content: space-between; align-items: baseline; gap: 6px; }
+.card header a { font-weight: 600; text-decoration: none; white-space: nowrap; }
+.card .verdict { font-weight: 600; font-size: 12px; padding: 0 6px; border-radius: 8px; background: #eef1f6; text-align: right; }
+.tone-better .verdict { background: #dff3e6; color: #1e6e3e; } .tone-worse .verdict { background: #f8e0dd; color: #8e2a20; }
+.card .question { margin: 4px 0 6px; font-weight: 600; }
+.card dl { margin: 0; display: grid; grid-template-columns: max-content 1fr; column-gap: 8px; row-gap: 2px; }
+.card dt { color: var(--muted); } .card dd { margin: 0; } .card .test, .card .note { color: var(--muted); font-size: 12px; }
+.card .note { margin: 4px 0 0; }
 th[aria-sort="ascending"]::after { content: " \\25B2"; font-size: 10px; }
 th[aria-sort="descending"]::after { content: " \\25BC"; font-size: 10px; }
 td.num { text-align: right; font-variant-numeric: tabular-nums; }
@@ -74,9 +99,9 @@ _JS = r"""
     return typeof a === 'number' ? -1 : 1;
   }
   function sortBy(th) {
-    var table = th.closest('table'), body = table.tBodies[0], col = th.cellIndex;
+    var table = th.closest('table'), body = table.tBodies[0], col = Number(th.getAttribute('data-col'));
     var dir = th.getAttribute('aria-sort') === 'ascending' ? -1 : 1;
-    table.querySelectorAll('th').forEach(function (h) { h.removeAttribute('aria-sort'); });
+    table.querySelectorAll('th[aria-sort]').forEach(function (h) { h.removeAttribute('aria-sort'); });
     th.setAttribute('aria-sort', dir === 1 ? 'ascending' : 'descending');
     var rows = Array.prototype.slice.call(body.rows).map(function (tr, i) { return [key(tr.cells[col]), i, tr]; });
     rows.sort(function (x, y) {
@@ -86,8 +111,36 @@ _JS = r"""
     });
     rows.forEach(function (r) { body.appendChild(r[2]); });
   }
-  document.querySelectorAll('table.sortable th').forEach(function (th) {
+  document.querySelectorAll('table.sortable th[data-col]').forEach(function (th) {
     th.addEventListener('click', function () { sortBy(th); });
+  });
+  function showGroup(table, group, show) {
+    table.querySelectorAll('[data-group="' + group + '"]').forEach(function (c) { c.hidden = !show; });
+  }
+  document.querySelectorAll('.groups').forEach(function (bar) {
+    var table = document.getElementById(bar.getAttribute('data-table'));
+    var buttons = Array.prototype.slice.call(bar.querySelectorAll('button[data-group]'));
+    var all = bar.querySelector('button.all');
+    function sync() {
+      if (all) all.setAttribute('aria-pressed', String(buttons.every(function (b) { return b.getAttribute('aria-pressed') === 'true'; })));
+    }
+    buttons.forEach(function (b) {
+      b.addEventListener('click', function () {
+        var show = b.getAttribute('aria-pressed') !== 'true';
+        b.setAttribute('aria-pressed', String(show));
+        showGroup(table, b.getAttribute('data-group'), show);
+        sync();
+      });
+    });
+    if (all) all.addEventListener('click', function () {
+      var show = all.getAttribute('aria-pressed') !== 'true';
+      buttons.forEach(function (b) {
+        var on = show || b.getAttribute('data-default') === 'shown';
+        b.setAttribute('aria-pressed', String(on));
+        showGroup(table, b.getAttribute('data-group'), on);
+      });
+      sync();
+    });
   });
   document.querySelectorAll('input.filter').forEach(function (input) {
     input.addEventListener('input', function () {
@@ -136,36 +189,114 @@ def _interval_bar(mean: float, low: float, high: float) -> str:
             "</span></span>")
 
 
-def _td(cell: Cell | str, wrap: bool = False) -> str:
+def _td(cell: Cell | str, wrap: bool = False, extra: str = "", pin: bool = False) -> str:
+    """One body cell; ``extra``: more attributes (its column group), ``pin``: the column that stays in view."""
     c = cell if isinstance(cell, Cell) else Cell(str(cell))
     text = html.escape(c.text)
     if c.href:
         text = f'<a href="{html.escape(c.href)}">{text}</a>'
     if c.interval is not None:
         text = _interval_bar(*c.interval) + text
-    classes = []
+    classes = ["pin"] if pin else []
     if isinstance(c.sort, (int, float)) and not isinstance(c.sort, bool):
         classes.append("num")
     if wrap:
         classes.append("err")
     cls = f' class="{" ".join(classes)}"' if classes else ""
     title = f' title="{html.escape(c.title)}"' if c.title else ""
-    return f"<td{cls}{_sort_attr(c.sort)}{title}>{text}</td>"
+    return f"<td{cls}{_sort_attr(c.sort)}{title}{extra}>{text}</td>"
+
+
+def _group_ids(t: Table) -> list[str]:
+    """Per column, the ``data-group`` id of its group (``g1``, ``g2``, ...; ``""``: in no group)."""
+    ids, names = [], {}
+    for g in t.groups or ("",) * len(t.head):
+        ids.append(names.setdefault(g, f"g{len(names) + 1}") if g else "")
+    return ids
+
+
+def _head(t: Table, gids: list[str]) -> str:
+    """The header: one row, or with groups two (group names over their columns; columns in no
+    group span both rows)."""
+    def col(i: int, rowspan: str = "") -> str:
+        hidden = " hidden" if t.groups and t.groups[i] in t.collapsed else ""
+        group = f' data-group="{gids[i]}"' if gids[i] else ""
+        pin = ' class="pin"' if i == 0 else ""
+        return f'<th scope="col" data-col="{i}"{rowspan}{group}{pin}{hidden}>{html.escape(t.head[i])}</th>'
+
+    if not any(gids):
+        return "<tr>" + "".join(col(i) for i in range(len(t.head))) + "</tr>"
+    top, bottom, i = [], [], 0
+    while i < len(t.head):
+        if not gids[i]:
+            top.append(col(i, ' rowspan="2"'))
+            i += 1
+            continue
+        j = i
+        while j < len(t.head) and gids[j] == gids[i]:
+            j += 1
+        hidden = " hidden" if t.groups[i] in t.collapsed else ""
+        top.append(f'<th scope="colgroup" class="group" colspan="{j - i}" data-group="{gids[i]}"{hidden}>'
+                   f"{html.escape(t.groups[i])}</th>")
+        bottom += [col(k) for k in range(i, j)]
+        i = j
+    return f"<tr>{''.join(top)}</tr><tr>{''.join(bottom)}</tr>"
+
+
+def _group_bar(t: Table, gids: list[str], table_id: str) -> str:
+    """A button per column group (pressed: shown), and one that shows them all."""
+    seen = {}
+    for g, gid in zip(t.groups, gids):
+        if gid:
+            seen.setdefault(gid, [g, 0])[1] += 1
+    buttons = "".join(
+        f'<button type="button" data-group="{gid}" aria-pressed="{str(g not in t.collapsed).lower()}" '
+        f'data-default="{"hidden" if g in t.collapsed else "shown"}" title="show or hide the {n} column(s) of {html.escape(g)}">'
+        f"{html.escape(g)} ({n})</button>" for gid, (g, n) in seen.items())
+    everything = f'<button type="button" class="all" aria-pressed="{str(not t.collapsed).lower()}">all</button>'
+    return f'<div class="groups" data-table="{table_id}">column groups: {buttons}{everything}</div>'
 
 
 def _table(t: Table, table_id: str) -> str:
-    head = "".join(f'<th scope="col">{html.escape(h)}</th>' for h in t.head)
+    gids = _group_ids(t)
+    cell_attrs = [(f' data-group="{g}"' if g else "") + (" hidden" if g and t.groups[i] in t.collapsed else "")
+                  for i, g in enumerate(gids)]
     kinds = t.row_kinds or ("",) * len(t.rows)
-    body = "\n".join((f'<tr class="kind-{html.escape(k)}">' if k else "<tr>") + "".join(_td(c, h == "error") for h, c in zip(t.head, row)) + "</tr>"
-                     for k, row in zip(kinds, t.rows))
-    table = (f'<div class="table-wrap"><table class="sortable" id="{table_id}"><thead><tr>{head}</tr></thead>'
+    body = "\n".join((f'<tr class="kind-{html.escape(k)}">' if k else "<tr>")
+                     + "".join(_td(c, h == "error", a, i == 0) for i, (h, c, a) in enumerate(zip(t.head, row, cell_attrs)))
+                     + "</tr>" for k, row in zip(kinds, t.rows))
+    table = (f'<div class="table-wrap"><table class="sortable" id="{table_id}"><thead>{_head(t, gids)}</thead>'
              f"<tbody>\n{body}\n</tbody></table></div>")
+    if any(gids):
+        table = _group_bar(t, gids, table_id) + table
     if t.markdown:
         return (f"<p><em>{_inline(t.caption)}</em></p>" if t.caption else "") + table
     filt = (f'<input class="filter" type="search" placeholder="filter rows (words)" data-table="{table_id}" '
             f'aria-label="filter {html.escape(t.caption or table_id)}">')
     return (f'<details{" open" if len(t.rows) <= _OPEN_ROWS else ""}><summary>{_inline(t.caption or t.name)}'
             f"</summary>{filt}{table}</details>")
+
+
+def _card(c: Card) -> str:
+    title = f"<code>{html.escape(c.title)}</code>"
+    title = f'<a href="{html.escape(c.href)}">{title}</a>' if c.href else title
+    verdict = f'<span class="verdict">{html.escape(c.verdict)}</span>' if c.verdict else ""
+    bar = _interval_bar(*c.interval) if c.interval is not None else ""
+    rows = [("best", f"<strong>{html.escape(c.best)}</strong>"), ("", f"{bar}{html.escape(c.figure)}")]
+    if c.against:
+        rows.append(("against", html.escape(c.against)))
+    if c.difference:
+        rows.append(("difference", f"<strong>{html.escape(c.difference)}</strong>"
+                                   + (f'<br><span class="test">{html.escape(c.test)}</span>' if c.test else "")))
+    dl = "".join(f"<dt>{k}</dt><dd>{v}</dd>" for k, v in rows)
+    note = f'<p class="note">{_inline(c.note)}</p>' if c.note else ""
+    tone = f" tone-{html.escape(c.tone)}" if c.tone else ""
+    return (f'<article class="card{tone}" data-suite="{html.escape(c.title)}"><header>{title}{verdict}</header>'
+            f'<p class="question">{html.escape(c.question)}</p><dl>{dl}</dl>{note}</article>')
+
+
+def _cards(block: Cards, section_id: str) -> str:
+    return f'<section class="cards" id="{section_id}">' + "".join(_card(c) for c in block.cards) + "</section>"
 
 
 def _figure(f: Figure, figures: dict[str, bytes]) -> str:
@@ -177,11 +308,12 @@ def _figure(f: Figure, figures: dict[str, bytes]) -> str:
 def render_html(doc: ReportDocument) -> str:
     """The page's HTML text (UTF-8): title, a contents line, then every block in order."""
     used: set[str] = set()
-    table_ids = {id(b): _slug(b.name or "table", used) for b in doc.blocks if isinstance(b, Table)}  # stable ids first
+    anchors = {id(b): _slug(b.anchor, used) for b in doc.blocks if isinstance(b, Heading) and b.anchor}  # links to them first
+    table_ids = {id(b): _slug(b.name or "table", used) for b in doc.blocks if isinstance(b, (Table, Cards))}  # stable ids next
     parts, nav = [], []
     for block in doc.blocks:
         if isinstance(block, Heading):
-            slug = _slug(block.text, used)
+            slug = anchors.get(id(block)) or _slug(block.text, used)
             level = min(max(block.level, 2), 4)
             if level == 2:
                 nav.append(f'<a href="#{slug}">{_inline(block.text)}</a>')
@@ -192,10 +324,12 @@ def render_html(doc: ReportDocument) -> str:
             parts.append("<ul>" + "".join(f"<li>{_inline(i)}</li>" for i in block.items) + "</ul>")
         elif isinstance(block, Table):
             parts.append(_table(block, table_ids[id(block)]))
+        elif isinstance(block, Cards):
+            parts.append(_cards(block, table_ids[id(block)]))
         elif isinstance(block, Figure):
             parts.append(_figure(block, doc.figures))
         else:
-            raise TypeError(f"report block: expected Heading, Paragraph, Bullets, Table or Figure, got {type(block).__name__}")
+            raise TypeError(f"report block: expected Heading, Paragraph, Bullets, Table, Figure or Cards, got {type(block).__name__}")
     return "\n".join([
         "<!DOCTYPE html>", '<html lang="en"><head><meta charset="utf-8">',
         '<meta name="viewport" content="width=device-width, initial-scale=1">',

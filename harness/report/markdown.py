@@ -5,11 +5,16 @@ writes ``report.md`` plus the figures it links into one folder, every file atomi
 is built once as data (:func:`build_report`, blocks of :mod:`harness.report.document`) and
 rendered to Markdown here and to a self-contained HTML page by :mod:`harness.report.html`:
 
+- first, the headline: one card per suite with the question it answers, the best agent, its
+  difference to its matched twin or the suite's baseline with the 95% interval, p and n, and a
+  verdict (:mod:`harness.report.cards`); the suites' sections follow in the cards' order;
 - a run summary (episodes, statuses, suites, agents, encoders, total wall time, and which
   agents read ground truth a robot does not have: records with ``extras.privileged``);
-- per suite, a table of every (agent, encoder) with success and SPL and their 95% intervals,
-  the other metrics present and the wall time per episode (privileged groups marked
-  "(privileged)" beside their encoder), and a bar chart of success;
+- per suite, a table of every (agent, encoder) with each metric the suite's records have and
+  its 95% interval, under readable names in groups (:mod:`harness.report.labels`; the HTML report
+  starts wide tables with the headline's group only), the failed/timed-out count when some
+  episode did not finish and the wall time per episode (privileged groups marked "(privileged)"
+  beside their encoder), and a bar chart of success;
 - per suite, paired comparisons: first each map-equipped agent against its matched map-free twin
   (``extras.twin_of``), then against every other map-free one (``extras.uses_map``; when some
   group lacks it, every pair of groups is compared);
@@ -43,8 +48,10 @@ import numpy as np
 from conceptfusion.errors import MissingFileError
 from conceptfusion.io_utils import atomic_write_bytes, atomic_write_text
 from harness.report import plots as report_plots
+from harness.report.cards import answer_card, section_anchor, suite_answers
 from harness.report.episodes import episode_table
-from harness.report.document import Bullets, Cell, Figure, Heading, Paragraph, ReportDocument, Table, render_markdown
+from harness.report.document import Bullets, Cards, Cell, Figure, Heading, Paragraph, ReportDocument, Table, render_markdown
+from harness.report.labels import column_order, metric_label
 from harness.runner.results import RESULTS_FILE, ResultsFormatError, load_results, record_key, warn_record_problems
 from harness.report.stats import group_key, paired_comparison, per_category, seed_spread, summarize, within_noise
 
@@ -54,6 +61,10 @@ REPORT_FILE = "report.md"
 _PATH_EPISODES = 3
 _MAX_HEATMAPS = 4
 _MAX_PAIRS = 24
+_TABLE_BOX_PX = 1232
+"""Width of the HTML report's content box: a suite table starts with the column groups that fit
+in it shown (the headline metric's group always, then the others in column order) and the rest
+hidden, one click away."""
 
 
 def _collect(inputs, base_dir) -> list[tuple[dict, Path | None, str]]:
@@ -81,11 +92,14 @@ def _collect(inputs, base_dir) -> list[tuple[dict, Path | None, str]]:
 
 
 def _fmt(stat) -> str:
+    """``mean [low, high]``: two decimals below 10, one below 100, none above (the interval as its mean)."""
     if stat is None:
         return "-"
+    top = max(abs(stat.mean), 0.0 if math.isnan(stat.high) else abs(stat.high))
+    d = 2 if top < 10 else 1 if top < 100 else 0
     if math.isnan(stat.low):
-        return f"{stat.mean:.2f}"
-    return f"{stat.mean:.2f} [{stat.low:.2f}, {stat.high:.2f}]"
+        return f"{stat.mean:.{d}f}"
+    return f"{stat.mean:.{d}f} [{stat.low:.{d}f}, {stat.high:.{d}f}]"
 
 
 def _stat_cell(stat) -> Cell:
@@ -149,17 +163,60 @@ def _summary_section(records) -> list:
     ))]
 
 
-def _suite_table(rows, suite: str, privileged: set[tuple[str, str]] = frozenset()) -> Table:
-    others = sorted({m for r in rows for m in r.metrics} - {"success", "spl"})
-    head = ("agent", "encoder", "n", "failed/timeout", "success [95% CI]", "SPL [95% CI]", *others, "s/episode")
+def _suite_table(rows, suite: str, privileged: set[tuple[str, str]] = frozenset(), headline: str | None = None) -> Table:
+    """Every (agent, encoder) of a suite, the best by the headline metric first: each metric some
+    row has (mean [95% CI]) under its readable name and group, the headline metric's group first;
+    the failed/timeout column only when some episode did not finish, the wall time only when
+    recorded."""
+    first = metric_label(headline)[0] if headline else None
+    metrics = column_order({m for r in rows for m in r.metrics}, first_group=first)
+    labels = [metric_label(m) for m in metrics]
+    unfinished = any(r.n_failed or r.n_timeout for r in rows)
+    timed = any(math.isfinite(r.wall_s) for r in rows)
+    head = ("agent", "encoder", "n", *(("failed/timeout",) if unfinished else ()), *(c for _, c in labels),
+            *(("s/episode",) if timed else ()))
+    groups = ("", "", "", *(("",) if unfinished else ()), *(g for g, _ in labels), *(("",) if timed else ()))
     body = []
-    for r in rows:
+    ranked = sorted(rows, key=lambda r: -r.metrics[headline].mean if headline in r.metrics else math.inf)  # stable: by name next
+    for r in ranked:
         encoder = f"{r.encoder} (privileged)" if (r.agent, r.encoder) in privileged else r.encoder
         body.append((r.agent, encoder, Cell(str(r.n), sort=r.n),
-                     Cell(f"{r.n_failed}/{r.n_timeout}", sort=r.n_failed + r.n_timeout),
-                     _stat_cell(r.metrics.get("success")), _stat_cell(r.metrics.get("spl")),
-                     *(_stat_cell(r.metrics.get(m)) for m in others), Cell(_fmt_seconds(r.wall_s), sort=r.wall_s)))
-    return Table(head, body, name=f"suite-{suite}")
+                     *((Cell(f"{r.n_failed}/{r.n_timeout}", sort=r.n_failed + r.n_timeout),) if unfinished else ()),
+                     *(_stat_cell(r.metrics.get(m)) for m in metrics),
+                     *((Cell(_fmt_seconds(r.wall_s), sort=r.wall_s),) if timed else ())))
+    named = [g for g in dict.fromkeys(groups) if g]
+    collapsed = _groups_past_the_box(head, groups, body, first)
+    return Table(head, body, name=f"suite-{suite}", groups=groups if named else (), collapsed=collapsed,
+                 caption="Each metric: mean [95% interval] over the episodes (Wilson for rates, bootstrap for means)"
+                         + ("; column groups not shown start hidden (the buttons show them)" if collapsed else ""))
+
+
+def _column_px(label: str, cells) -> int:
+    """A rough width of an HTML table column: 7 px a character at the page's 13 px font, 17 px of
+    padding and border, 54 px more when its cells draw an interval bar."""
+    texts = [label] + [c.text if isinstance(c, Cell) else str(c) for c in cells]
+    bar = any(isinstance(c, Cell) and c.interval is not None for c in cells)
+    return 17 + 7 * max(len(t) for t in texts) + (54 if bar else 0)
+
+
+def _groups_past_the_box(head, groups, body, first: str | None) -> tuple[str, ...]:
+    """The column groups the HTML report starts hidden: those that no longer fit
+    :data:`_TABLE_BOX_PX` once the ungrouped columns, the headline's group and the groups before
+    them in column order are shown."""
+    widths = [_column_px(h, [row[i] for row in body]) for i, h in enumerate(head)]
+    used = sum(w for w, g in zip(widths, groups) if not g)
+    order = list(dict.fromkeys(g for g in groups if g))
+    if first in order:
+        order.remove(first)
+        order.insert(0, first)
+    hidden = []
+    for g in order:
+        width = sum(w for w, gg in zip(widths, groups) if gg == g)
+        if g != first and (hidden or used + width > _TABLE_BOX_PX):
+            hidden.append(g)
+        else:
+            used += width
+    return tuple(hidden)
 
 
 def _runs_side_by_side(run_items, suite: str) -> list:
@@ -423,12 +480,15 @@ def build_report(run_dirs_or_records, out_dir: str | os.PathLike, *,
     w = _Writer(out)
     rows = summarize(records)
     several_runs = len({label for _, _, label in run_items}) > 1
-    blocks: list = _summary_section(records)
-    for suite in sorted({r.suite for r in rows}):
+    answers = suite_answers(records)
+    headline = {a.suite: a.metric for a in answers}
+    blocks: list = [Heading(2, "Headline"), Cards(tuple(answer_card(a) for a in answers)), *_summary_section(records)]
+    suites = sorted({r.suite for r in rows})
+    for suite in [a.suite for a in answers] + [s for s in suites if s not in headline]:
         suite_rows = [r for r in rows if r.suite == suite]
         suite_recs = [r for r in records if r["suite"] == suite]
-        blocks += [Heading(2, f"Suite `{suite}`"), *_twin_section(suite_recs, suite, w),
-                   _suite_table(suite_rows, suite, _privileged(suite_recs))]
+        blocks += [Heading(2, f"Suite `{suite}`", anchor=section_anchor(suite)), *_twin_section(suite_recs, suite, w),
+                   _suite_table(suite_rows, suite, _privileged(suite_recs), headline.get(suite))]
         with_success = [r for r in suite_rows if "success" in r.metrics]
         if with_success:
             labels = [f"{r.agent}\n({r.encoder})" for r in with_success]

@@ -137,6 +137,18 @@ class Suite:
     scenes_root: Path | None = None
     """Folder the episodes' scene references resolve under (None: the shipped ``scenes/``); a
     user's episode suite (:func:`episodes_suite`) may name its own."""
+    question: str = ""
+    """The question the suite answers, in plain words: the title of its card on the report's first
+    screen (:mod:`harness.report.cards`; empty: a generic question)."""
+    headline_metric: str = ""
+    """The metric the card ranks agents by and compares (higher is better; empty: ``success`` when
+    the records have it, else their first metric)."""
+    baseline: str = ""
+    """The agent the card compares the best agent with when no matched twin (``extras.twin_of``)
+    ran (empty: none; the card then shows the best figure with its interval)."""
+    verdicts: tuple[str, str] = ("map helps", "map hurts")
+    """The card's verdict when the difference's 95% interval lies above 0, and when it lies below
+    ("no detectable difference" when it holds 0)."""
 
 
 REARRANGE_V2_ENV = {"width": 320, "height": 240, "scan_frames": 8}
@@ -178,6 +190,15 @@ FRAME_SEARCHER_LIMIT = 8
 otherwise: the slowest agent (it segments every frame) and a reference, not the headline
 comparison (which is the map navigator against its twin)."""
 
+_Q_PUSH = "Does the map help the pusher find and push the described object?"
+_Q_SEARCH = "Does the map help the navigator reach the described object?"
+_Q_QUERY = "How well does the map find objects named, described, shown or clicked?"
+_Q_QUERY_OPEN = "How well does the map find objects named in words of every kind, seen and held out?"
+_ABLATION_CARD = {"question": "Which part of the pixel-aligned features matters?", "headline_metric": "macc",
+                  "baseline": "global", "verdicts": ("beats global only", "worse than global only")}
+_SPATIAL_CARD = {"question": "Does a 3D map answer spatial questions better than a single frame?", "headline_metric": "accuracy",
+                 "baseline": "frame-2.5d"}
+
 SUITES: dict[str, Suite] = {
     s.name: s
     for s in (
@@ -185,7 +206,7 @@ SUITES: dict[str, Suite] = {
             "rearrange", "episodes", "tabletop rearrangement: push named objects across the line (MuJoCo)",
             task="tabletop_rearrange", episodes_file=SCENES_ROOT / "tabletop" / "episodes-v1.jsonl",
             agents=("map-pusher", "frame-pusher", "random-pusher"),
-            env_kwargs={"width": 160, "height": 120, "scan_frames": 8},
+            env_kwargs={"width": 160, "height": 120, "scan_frames": 8}, question=_Q_PUSH, headline_metric="success",
         ),
         Suite(
             "rearrange-v2", "episodes",
@@ -193,12 +214,13 @@ SUITES: dict[str, Suite] = {
             task="tabletop_rearrange", episodes_file=SEALED_FOLDER / "rearrange-episodes-v2.jsonl",
             agents=("map-pusher", "twin-pusher", "frame-pusher", "random-pusher"),
             env_kwargs=dict(REARRANGE_V2_ENV), default_encoder="embedded-v2", limit=REARRANGE_V2_LIMIT,
+            question=_Q_PUSH, headline_metric="success",
         ),
         Suite(
             "search", "episodes", "object search in apartments: stop within 1 m of the described object",
             task="object_search", episodes_file=SCENES_ROOT / "household" / "episodes-v1.jsonl",
             agents=("map-navigator", "frame-searcher", "random-walker"),
-            env_kwargs={"width": 160, "height": 120},
+            env_kwargs={"width": 160, "height": 120}, question=_Q_SEARCH, headline_metric="success",
         ),
         Suite(
             "search-v2", "episodes",
@@ -206,7 +228,7 @@ SUITES: dict[str, Suite] = {
             task="object_search", episodes_file=SEALED_FOLDER / "search-episodes-v2.jsonl",
             agents=("map-navigator", "twin-navigator", "frame-searcher", "random-walker"),
             env_kwargs=dict(SEARCH_V2_ENV), default_encoder="embedded-v2", limit=SEARCH_V2_LIMIT,
-            agent_limits={"frame-searcher": FRAME_SEARCHER_LIMIT},
+            agent_limits={"frame-searcher": FRAME_SEARCHER_LIMIT}, question=_Q_SEARCH, headline_metric="success",
         ),
         Suite(
             "chain-v2", "episodes",
@@ -215,6 +237,8 @@ SUITES: dict[str, Suite] = {
             task="object_search", episodes_file=SEALED_FOLDER / "chain-episodes-v2.jsonl",
             agents=("map-navigator", "twin-navigator", "random-walker"),
             env_kwargs=dict(SEARCH_V2_ENV), default_encoder="embedded-v2", limit=CHAIN_V2_LIMIT,
+            question="Does the map help the navigator reach several described objects, one after another?",
+            headline_metric="success",
         ),
         Suite(
             "fetch-v2", "episodes",
@@ -222,20 +246,24 @@ SUITES: dict[str, Suite] = {
             "position (reached_k)",
             task="object_search", episodes_file=SEALED_FOLDER / "fetch-episodes-v2.jsonl",
             agents=("map-navigator", "twin-navigator", "random-walker"), env_kwargs=dict(SEARCH_V2_ENV), default_encoder="embedded-v2",
+            question="After exploring, does the map help the navigator fetch described objects one after another?",
+            headline_metric="success",
         ),
-        Suite("query", "maps", "text, image and click query localisation over fused tabletop maps (3D mIoU, detection accuracy)"),
+        Suite("query", "maps", "text, image and click query localisation over fused tabletop maps (3D mIoU, detection accuracy)",
+              question=_Q_QUERY, headline_metric="text_miou"),
         Suite("query-open", "maps",
               "open-vocabulary text queries over fused v2 tabletop maps: name, synonym, parent, colour, material, function, "
               "absent; split seen / held-out instance / held-out category (3D mIoU, accuracy at IoU 0.25, found rate)",
-              default_encoder="embedded-v2"),
-        Suite("ablation", "maps", "pixel-feature ablation: global only, local only, no uniqueness, full (mAcc, f-mIoU)"),
-        Suite("spatial", "maps", "spatial questions from the scene graph: 3D map vs single RGB-D frame"),
+              default_encoder="embedded-v2", question=_Q_QUERY_OPEN, headline_metric="name_miou"),
+        Suite("ablation", "maps", "pixel-feature ablation: global only, local only, no uniqueness, full (mAcc, f-mIoU)",
+              **_ABLATION_CARD),
+        Suite("spatial", "maps", "spatial questions from the scene graph: 3D map vs single RGB-D frame", **_SPATIAL_CARD),
         Suite("query-v2", "maps", "text, image and click query localisation over fused v2 tabletop maps (object library; 3D mIoU, "
-              "detection accuracy)", default_encoder="embedded-v2"),
+              "detection accuracy)", default_encoder="embedded-v2", question=_Q_QUERY, headline_metric="text_miou"),
         Suite("ablation-v2", "maps", "pixel-feature ablation on v2 tabletops: global only, local only, no uniqueness, full "
-              "(mAcc, f-mIoU)", default_encoder="embedded-v2"),
+              "(mAcc, f-mIoU)", default_encoder="embedded-v2", **_ABLATION_CARD),
         Suite("spatial-v2", "maps", "spatial questions from the scene graph of v2 apartments and tabletops: 3D map vs single "
-              "RGB-D frame", default_encoder="embedded-v2"),
+              "RGB-D frame", default_encoder="embedded-v2", **_SPATIAL_CARD),
         Suite(
             "regression-rearrange", "episodes", "pinned tabletop episodes with calibrated success floors, oracle perception (CI)",
             task="tabletop_rearrange", episodes_file=SCENES_ROOT / "tabletop" / "episodes-v1.jsonl",

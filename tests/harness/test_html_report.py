@@ -1,5 +1,6 @@
-"""The HTML report: every table of the Markdown report, self-contained, episodes failures first with
-links to replay videos and maps that exist, several runs side by side, and a size bound."""
+"""The HTML report: the headline cards first, every table of the Markdown report (column groups in a
+two-row header, the wide ones partly hidden), self-contained, episodes failures first with links to
+replay videos and maps that exist, several runs side by side, and a size bound."""
 
 import re
 from html.parser import HTMLParser
@@ -8,28 +9,40 @@ from pathlib import Path
 import numpy as np
 import pytest
 
-from harness.report.document import Cell, ReportDocument, Table, render_markdown
+from harness.report.document import Card, Cards, Cell, ReportDocument, Table, render_markdown
 from harness.report.html import HTML_FILE, render_html, write_reports
 from harness.report.paths import replay_stem
 from harness.runner.results import append_record, make_record
 
 
 class _Tables(HTMLParser):
-    """Every <table>: its id, header cells and rows (cell texts), and the links and images of the page."""
+    """Every <table>: its id, column names (``group: column`` for grouped columns, in column
+    order), rows (cell texts), which body columns start hidden; the page's cards (their text),
+    links and images."""
 
     def __init__(self):
         super().__init__()
-        self.tables, self.links, self.images, self.scripts, self._cell = [], [], [], [], None
+        self.tables, self.links, self.images, self.scripts, self.cards, self._cell = [], [], [], [], [], None
+        self._card_depth = 0
 
     def handle_starttag(self, tag, attrs):
         a = dict(attrs)
+        if tag == "article" and "card" in (a.get("class") or ""):
+            self.cards.append({"suite": a.get("data-suite"), "class": a.get("class"), "text": ""})
+            self._card_depth = 1
+        elif self._card_depth and tag == "article":
+            self._card_depth += 1
         if tag == "table":
-            self.tables.append({"id": a.get("id"), "head": [], "rows": [], "kinds": []})
+            self.tables.append({"id": a.get("id"), "ths": [], "rows": [], "kinds": [], "hidden_cols": set()})
         elif tag == "tr" and self.tables:
             self.tables[-1]["rows"].append([])
             self.tables[-1]["kinds"].append(a.get("class") or "")
-        elif tag in ("td", "th"):
-            self._cell = [tag, ""]
+        elif tag == "th":
+            self._cell = [tag, "", a]
+        elif tag == "td":
+            self._cell = [tag, "", a]
+            if "hidden" in a:
+                self.tables[-1]["hidden_cols"].add(len(self.tables[-1]["rows"][-1]))
         elif tag == "a":
             self.links.append(a.get("href"))
         elif tag == "img":
@@ -40,11 +53,18 @@ class _Tables(HTMLParser):
     def handle_data(self, data):
         if self._cell is not None:
             self._cell[1] += data
+        if self._card_depth:
+            self.cards[-1]["text"] += data
 
     def handle_endtag(self, tag):
+        if tag == "article" and self._card_depth:
+            self._card_depth -= 1
         if tag in ("td", "th") and self._cell is not None:
             t = self.tables[-1]
-            (t["head"] if self._cell[0] == "th" else t["rows"][-1]).append(self._cell[1].strip())
+            if self._cell[0] == "th":
+                t["ths"].append((self._cell[1].strip(), self._cell[2]))
+            else:
+                t["rows"][-1].append(self._cell[1].strip())
             self._cell = None
 
 
@@ -54,6 +74,11 @@ def _parse(text):
     for t in p.tables:
         t["kinds"] = [k for k, r in zip(t["kinds"], t["rows"]) if r]
         t["rows"] = [r for r in t["rows"] if r]
+        groups = {a["data-group"]: text for text, a in t["ths"] if a.get("class") == "group"}
+        cols = sorted((int(a["data-col"]), f"{groups[a['data-group']]}: {text}" if a.get("data-group") else text, "hidden" in a)
+                      for text, a in t["ths"] if "data-col" in a)
+        t["head"] = [name for _, name, _ in cols]
+        t["hidden_head"] = {i for i, _, hidden in cols if hidden}
     return p
 
 
@@ -102,7 +127,7 @@ def two_runs(tmp_path_factory):
 def test_html_holds_every_table_of_the_markdown_report(two_runs):
     _, md, page = two_runs
     assert page.name == HTML_FILE and page.parent == md.parent
-    md_tables = _md_tables(md.read_text())
+    md_tables = [t for t in _md_tables(md.read_text()) if t[0][:2] != ["suite", "question"]]  # the headline: cards
     html_tables = _parse(page.read_text()).tables
     assert len(md_tables) >= 3  # suite table, runs side by side, paired comparisons
     for head, rows in md_tables:
@@ -190,3 +215,60 @@ def test_default_comparison_sized_report_is_small(tmp_path):
     assert size < 20 * 2**20, f"report.html is {size / 2**20:.1f} MB"
     tables = {t["id"]: t for t in _parse(page.read_text()).tables}
     assert len(tables["episodes-search"]["rows"]) == 150 and len(tables["episodes-rearrange"]["rows"]) == 450
+
+
+def test_the_page_opens_on_the_cards_and_markdown_on_their_table(two_runs):
+    _, md, page = two_runs
+    text = page.read_text()
+    parsed = _parse(text)
+    assert text.index('<section class="cards"') < text.index('id="run-summary"') < text.index('id="suite-search"')
+    (card,) = parsed.cards
+    assert card["suite"] == "search" and "map-navigator (test)" in card["text"] and "success" in card["text"]
+    assert 'href="#section-search"' in text and 'id="section-search"' in text  # the card links its section
+    md_text = md.read_text()
+    head, rows = _md_tables(md_text)[0]
+    assert head == ["suite", "question", "best", "figure", "against", "difference [95% CI]", "test", "verdict"]
+    assert md_text.index("## Headline") < md_text.index("## Run summary") < md_text.index("## Suite `search`")
+    assert rows[0][0] == "`search`" and rows[0][2] == "map-navigator (test)" and rows[0][2] in card["text"]
+
+
+def _grouped_doc():
+    head = ("agent", "n", "mIoU", "found", "mIoU", "found", "s")
+    groups = ("", "", "name", "name", "held-out category", "held-out category", "")
+    rows = [("a", Cell("3", sort=3), "0.5", "0.6", "0.1", "0.2", "1 s")]
+    return ReportDocument(title="t", out_dir=Path("."), figures={}, items=[], blocks=[
+        Table(head, rows, name="g", groups=groups, collapsed=("held-out category",))])
+
+
+def test_grouped_columns_have_a_two_row_header_and_start_hidden_when_collapsed():
+    doc = _grouped_doc()
+    text = render_html(doc)
+    (t,) = _parse(text).tables
+    assert t["head"] == ["agent", "n", "name: mIoU", "name: found", "held-out category: mIoU", "held-out category: found", "s"]
+    assert t["hidden_head"] == {4, 5} and t["hidden_cols"] == {4, 5}  # the collapsed group's header and cells
+    assert 'rowspan="2"' in text and 'colspan="2" data-group="g1">name</th>' in text
+    assert re.search(r'<th scope="colgroup" class="group" colspan="2" data-group="g2" hidden>held-out category</th>', text)
+    assert 'aria-pressed="true" data-default="shown"' in text and 'data-group="g2" aria-pressed="false"' in text
+    assert re.search(r'<th scope="col" data-col="0" rowspan="2" class="pin">agent</th>', text) and '<td class="pin">a</td>' in text
+    md = render_markdown(doc)  # the archive keeps every column, named in full
+    assert "| agent | n | name: mIoU | name: found | held-out category: mIoU | held-out category: found | s |" in md
+
+
+def test_table_groups_are_checked():
+    with pytest.raises(ValueError, match="2 group names for 3 columns"):
+        Table(("a", "b", "c"), [], groups=("", "x"))
+    with pytest.raises(ValueError, match="columns of a group must be adjacent"):
+        Table(("a", "b", "c"), [], groups=("x", "", "x"))
+    with pytest.raises(ValueError, match=r"collapsed groups \['y'\] are not groups of the table"):
+        Table(("a", "b"), [], groups=("", "x"), collapsed=("y",))
+
+
+def test_cards_are_escaped_and_marked_by_their_verdict():
+    card = Card(title="s<1>", question="Does <b> help?", best="a (e)", figure="success 0.50", against="b (twin) 0.25",
+                difference="+0.25 [+0.10, +0.40]", test="p 0.01", verdict="map helps", tone="better", href="#section-s")
+    text = render_html(ReportDocument(title="t", out_dir=Path("."), figures={}, items=[], blocks=[Cards((card,))]))
+    assert "Does &lt;b&gt; help?" in text and "<b> help" not in text and "s&lt;1&gt;" in text
+    (c,) = _parse(text).cards
+    assert "tone-better" in c["class"] and "map helps" in c["text"] and "+0.25 [+0.10, +0.40]" in c["text"]
+    md = render_markdown(ReportDocument(title="t", out_dir=Path("."), figures={}, items=[], blocks=[Cards((card,))]))
+    assert "| `s<1>` | Does <b> help? | a (e) | success 0.50 | b (twin) 0.25 | +0.25 [+0.10, +0.40] | p 0.01 | map helps |" in md

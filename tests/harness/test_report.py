@@ -67,7 +67,9 @@ def test_report_from_records(tmp_path):
     assert text.startswith("# Test report")
     assert "- episodes: 62 (failed 1, ok 61)" in text
     assert "## Suite `search`" in text and "## Suite `mapping`" in text
-    assert "| agent | encoder | n | failed/timeout | success [95% CI] | SPL [95% CI] | steps | s/episode |" in text
+    assert "| agent | encoder | n | failed/timeout | success | SPL | path: steps | s/episode |" in text
+    # a suite's table has the columns its records have: no success, SPL, failures or wall time for the map suite
+    assert "| agent | encoder | n | mIoU | 015: accuracy |" in text
     assert re.search(r"\| map-navigator\[integrate_every=3\] \| test \| 30 \| 0/0 \| 0\.\d\d \[0\.\d\d, 0\.\d\d\]", text)
     assert "| random-walker | none | 30 | 1/0 |" in text
     # map-equipped vs map-free, success and SPL
@@ -161,3 +163,27 @@ def test_report_opens_each_suite_with_the_map_agent_against_its_twin(tmp_path):
     # the references follow; the twin pair is not repeated there
     refs = suite[suite.index("map-equipped agents against the weak and random references"):]
     assert "| map-navigator (e) | random-walker (e) | success |" in refs and "twin-navigator (e) | success" not in refs
+
+
+def test_report_opens_on_the_headline_and_orders_suites_by_it(tmp_path):
+    """The cards come first (twin comparisons before the rest), then the run summary, then each
+    suite's section in the cards' order; a suite table ranks its agents by the headline metric."""
+    recs = []
+    for i in range(12):
+        for agent, extras, win in (("map-navigator", {"uses_map": True}, i < 10),
+                                   ("twin-navigator", {"uses_map": False, "twin_of": "map-navigator"}, i < 2)):
+            recs.append(make_record(run_id="r", suite="b-search", task="object_search", agent=agent, encoder="e",
+                                    episode_id=f"e{i}", seed=0, status="ok", metrics={"success": win}, extras=extras))
+        recs.append(make_record(run_id="r", suite="a-maps", task="query", agent="mapper", encoder="e", episode_id=f"m{i}",
+                                seed=0, status="ok", metrics={"miou": 0.5}))
+    text = write_report(recs, tmp_path).read_text()
+    order = [text.index(s) for s in ("## Headline", "| `b-search` |", "| `a-maps` |", "## Run summary", "## Suite `b-search`",
+                                      "## Suite `a-maps`")]
+    assert order == sorted(order)
+    row = next(line for line in text.splitlines() if line.startswith("| `b-search` |"))
+    assert "| map-navigator (e) | success 0.83 [" in row and "twin-navigator (matched map-free twin) 0.17" in row
+    assert "| map helps |" in row and "p 0.0078 (exact McNemar), 12 pairs" in row
+    suite = text[text.index("## Suite `b-search`"):]
+    table = suite[suite.index("| agent | encoder | n | success |"):]
+    assert table.index("| map-navigator |") < table.index("| twin-navigator |")  # the best first
+    assert "failed/timeout" not in suite.split("## Suite")[1]  # every episode finished: no such column
