@@ -78,6 +78,10 @@ def _number(value, integer: bool = False) -> Cell:
     return Cell(f"{value:.2f}" if abs(value) < 1000 else f"{value:.0f}", sort=value)
 
 
+def _text(cell) -> str:
+    return cell.text if isinstance(cell, Cell) else str(cell)
+
+
 def _is_int(value) -> bool:
     return isinstance(value, int) and not isinstance(value, bool)
 
@@ -111,7 +115,8 @@ def episode_table(run_items, suite: str, out_dir: str | os.PathLike, *, show_run
     ``run_items``: (record, run folder or None, run label) triples. Columns: run (with
     ``show_run``), agent, encoder, episode, seed, outcome (success / miss / the status, or a map
     suite's headline metric), cause (of a failure), goal (``extras.goal``), category, up to five
-    metrics, wall time, error, replay and map (``links``; default: relative to ``out_dir``).
+    metrics, wall time, error, replay and map (``links``; default: relative to ``out_dir``). A map
+    suite leaves out cause, goal and category when none of its rows has one.
     """
     links = links or ReportLinks(Path(out_dir))
     recs = [(r, base, label) for r, base, label in run_items if r["suite"] == suite]
@@ -140,6 +145,12 @@ def episode_table(run_items, suite: str, out_dir: str | os.PathLike, *, show_run
             _video_cell(replay), _map_cell(replay),
         )))
     rows.sort(key=lambda kr: kr[0])
+    if headline != "success":  # a map suite: leave out the columns none of its rows fills
+        empty = {h for i, h in enumerate(head) if h in ("cause", "goal", "category")
+                 and all(_text(row[i]) == "-" for _, _, row in rows)}
+        keep = [i for i, h in enumerate(head) if h not in empty]
+        head = tuple(head[i] for i in keep)
+        rows = [(key, kind, tuple(row[i] for i in keep)) for key, kind, row in rows]
     if headline == "success":
         failed = sum(kr[0][0] < 2 for kr in rows)
         caption = f"Episodes of {suite}: {len(rows)}, {failed} not successful (listed first)"

@@ -115,7 +115,7 @@ a { color: #2f6fdb; } .muted { color: #5b6575; }
 table { border-collapse: collapse; font-size: 13px; margin: 6px 0 10px; }
 th, td { border: 1px solid #d8dde6; padding: 4px 8px; text-align: left; vertical-align: top; }
 th { background: #eef1f6; } td.num { text-align: right; font-variant-numeric: tabular-nums; }
-td.goal { max-width: 22em; } td.detail { max-width: 26em; font-size: 12.5px; }
+td.goal { max-width: 22em; } td.detail { max-width: 26em; font-size: 12.5px; } td.id { white-space: nowrap; }
 details.play > summary { cursor: pointer; color: #2f6fdb; }
 details.play video { display: block; width: 360px; max-width: 40vw; margin-top: 4px; background: #111; }
 """
@@ -164,13 +164,14 @@ def render_failure_page(suite: str, groups: dict, links: ReportLinks, *, several
             replay = links.replay(r, base)
             goal = goal_text(r)
             recorded = isinstance((r.get("extras") or {}).get("stop_reason"), str) or r.get("status") != "ok"
+            goal_cell = esc(goal) if goal else '<span class="muted">not recorded</span>'
+            derived = "" if recorded else ' <span class="muted">(cause derived)</span>'
             rows.append(
                 "<tr>" + (f"<td>{esc(label)}</td>" if several_runs else "")
-                + f"<td>{esc(_agent(r))}<br><span class='muted'>{esc(str(r['encoder']))}</span></td>"
-                f"<td>{esc(str(r['episode_id']))}<br><span class='muted'>seed {esc(str(r['seed']))}</span></td>"
-                f"<td class='goal'>{esc(goal) if goal else '<span class=muted>not recorded</span>'}</td>"
-                f"<td>{esc(str(r.get('category') or '-'))}</td>"
-                f"<td class='detail'>{esc(_detail(r))}{'' if recorded else ' <span class=muted>(cause derived)</span>'}</td>"
+                + f'<td class="id">{esc(_agent(r))}<br><span class="muted">{esc(str(r["encoder"]))}</span></td>'
+                f'<td class="id">{esc(str(r["episode_id"]))}<br><span class="muted">seed {esc(str(r["seed"]))}</span></td>'
+                f'<td class="goal">{goal_cell}</td><td>{esc(str(r.get("category") or "-"))}</td>'
+                f'<td class="detail">{esc(_detail(r))}{derived}</td>'
                 f"<td>{_video_html(replay)}</td><td>{_map_html(replay)}</td></tr>")
         by_agent = ", ".join(f"{a} {n}" for a, n in sorted(Counter(_agent(r) for r, _, _ in items).items()))
         sections.append(

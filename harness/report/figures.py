@@ -88,7 +88,8 @@ def _choose(records: list[dict]) -> list[dict]:
     n_wins = min(len(wins), PATH_EPISODES // 2, max(PATH_EPISODES - len(losses), PATH_EPISODES // 2))
     n_losses = min(len(losses), PATH_EPISODES - n_wins)
     n_wins = min(len(wins), PATH_EPISODES - n_losses)
-    return losses[:n_losses] + wins[:n_wins]
+    by_id = lambda r: (str(r["episode_id"]), r["seed"])  # noqa: E731
+    return sorted(losses[:n_losses], key=by_id) + wins[:n_wins]
 
 
 def _panel(r: dict, cache: dict, w) -> dict:

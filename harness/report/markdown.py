@@ -18,13 +18,17 @@ rendered to Markdown here and to a self-contained HTML page by :mod:`harness.rep
   between-seed spread (std and min-max of the per-seed rates), and every pair of agents whose
   difference is within that noise flagged;
 - with several runs, per suite the success of every run side by side;
-- for agents whose records carry ``extras.path_xy``, a top-down view of a few episodes over the
-  floor plan of ``extras.scene`` (a path under ``scenes/``) with start and goal;
+- for agents whose records carry ``extras.path_xy``, a top-down view of a few failed and
+  successful episodes over the floor plan of ``extras.scene`` (a path under ``scenes/``) with
+  goal text, start, end and success region (:mod:`harness.report.figures`);
+- per suite with failures, their count per cause and agent, linking the suite's failure page
+  ``failures-<suite>.html`` (:mod:`harness.report.failures`);
 - per suite, one row per episode (HTML only: :mod:`harness.report.episodes`), failures first,
-  linking the episode's replay video and map when ``RUN/replays`` holds them;
-- for records with ``extras.heatmap_npz`` (``points`` (N, 3), ``values`` (N,)), a top-down
-  heatmap. A relative path is taken from the run folder the record came from (from
-  ``base_dir`` for records passed directly).
+  with goal, category and cause, linking the episode's replay video and map when
+  ``RUN/replays`` holds them;
+- for records with ``extras.heatmap_npz`` (written by :mod:`harness.maps.query`), a top-down
+  heatmap of the query over the table with its ground truth and verdict. A relative path is
+  taken from the run folder the record came from (from ``base_dir`` for records passed directly).
 
 What cannot be drawn (no categories, a missing scene or heatmap file) is skipped, and the
 report's last section says what was skipped and why.

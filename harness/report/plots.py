@@ -68,8 +68,8 @@ def category_bars(groups: dict[str, dict[str, tuple[float, int]]], *, title: str
     its height grown with the number of categories. Categories run hardest first (lowest mean
     over every group, weighted by n).
 
-    ``groups`` maps a group label to ``{category: (mean, n)}``; a category a group lacks is drawn
-    as ``-``.
+    ``groups`` maps a group label to ``{category: (mean, n)}``; a category a group lacks says
+    "not run".
     """
     cats = sorted({c for v in groups.values() for c in v})
     if not cats:
@@ -101,7 +101,7 @@ def category_bars(groups: dict[str, dict[str, tuple[float, int]]], *, title: str
         ax.barh(y, np.nan_to_num(means), height=0.7, color="tab:blue", alpha=0.85)
         for yi, c in zip(y, cats):
             if c not in per:
-                ax.text(0.02 * xmax, yi, "-", va="center", fontsize=8, color="gray")
+                ax.text(0.02 * xmax, yi, "not run", va="center", fontsize=7.5, color="gray", style="italic")
                 continue
             m, n = per[c]
             text = f"{int(round(m * n))}/{n}" if rate else f"{m:.2f} ({n})"

@@ -169,6 +169,7 @@ def test_map_suite_rows_give_their_headline_metric_not_a_miss(run):
     outcomes = [r[eps["head"].index("outcome")] for r in eps["rows"]]
     assert sorted(outcomes) == ["text_miou 0.25", "text_miou 0.50"]
     assert all(k == "" for k in eps["kinds"])  # no miss or failed mark
+    assert "cause" not in eps["head"] and "goal" not in eps["head"]  # columns none of its rows fills
     text = page.read_text()
     assert "Episodes of query: 2, no success metric" in text and "Episodes of query: 2, 2 not successful" not in text
     assert not (page.parent / failures_file("query")).exists()  # nothing failed there: no page
