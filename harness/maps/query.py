@@ -22,6 +22,7 @@ with an oracle (``oracle``, ``oracle-open``) their metrics are ``None``. Objects
 from __future__ import annotations
 
 import functools
+import io
 import math
 import time
 import zlib
@@ -30,6 +31,7 @@ from pathlib import Path
 import numpy as np
 
 from agents.builtin import make_mapper
+from conceptfusion.io_utils import atomic_write_bytes
 from conceptfusion.perception.featurizer import is_oracle
 from harness.maps.scan import SceneScan, fuse_frames, load_shipped_scene, point_labels, scan_tabletop, scene_kind, shipped_scene_ids
 from sim_envs.mujoco.scan import render_views
@@ -160,10 +162,6 @@ def _save_heatmap(path, pts, res, obj, gt_box, scene_box, scored: dict) -> None:
     text), ``object`` (its id), ``gt_box`` (2, 3) the object's box, ``scene_box`` (2, 3) the table
     and objects, ``answer_indices`` (K,) the points of the found region (empty when not found),
     ``found``, ``iou``, ``iou_thresh``, ``right_iou`` and ``version``."""
-    import io
-
-    from conceptfusion.io_utils import atomic_write_bytes
-
     answer = res.regions[0].indices_n if res.found and res.regions else np.zeros(0, np.int64)
     buf = io.BytesIO()
     np.savez_compressed(

@@ -38,6 +38,9 @@ _FLOOR_Z = 0.05
 """Metres: points below this are the floor, left out of an old heatmap file's crop."""
 _MARGIN = 0.06
 """Metres around the table and objects in a heatmap's crop."""
+_RIGHT_IOU = 0.25
+"""IoU a found answer must pass to be right, for files that predate ``right_iou``
+(:data:`harness.maps.query.RIGHT_IOU`, not imported: that module loads the simulator)."""
 
 
 def _scene(ref: str, cache: dict):
@@ -222,7 +225,7 @@ def read_heatmap(path: Path, record: dict) -> HeatmapView:
     name = str(data["query"]) if "query" in data else str((query_rec or {}).get("name")
                                                          or (record.get("extras") or {}).get("query") or "?")
     notes: list[str] = []
-    right_iou = float(data["right_iou"]) if "right_iou" in data else 0.25
+    right_iou = float(data["right_iou"]) if "right_iou" in data else _RIGHT_IOU
     if "found" in data:
         found, iou = bool(data["found"]), float(data["iou"])
     else:
@@ -269,7 +272,7 @@ def heatmap_figures(items, w) -> list:
     def right(r):  # from the record, before any file is read: wrong answers first
         q = _first_text_query(r)
         t = (q or {}).get("text")
-        return isinstance(t, dict) and bool(t.get("found")) and (t.get("iou") or 0) > 0.25
+        return isinstance(t, dict) and bool(t.get("found")) and (t.get("iou") or 0) > _RIGHT_IOU
 
     wrong = [c for c in candidates if not right(c[0])]
     good = [c for c in candidates if right(c[0])]
@@ -301,4 +304,4 @@ def heatmap_figures(items, w) -> list:
     return [Heading(2, "Query heatmaps"),
             Paragraph("Each map's relevancy to its first text query, seen from above over the table: the brightest "
                       "point of each cell. Green box: the queried object; dashed: the region the map answered with. "
-                      "Right means found with IoU above 0.25 with the object's points.")] + blocks
+                      f"Right means found with IoU above {_RIGHT_IOU:g} with the object's points (older files: the record's score).")] + blocks
