@@ -413,17 +413,36 @@ def cmd_compare(args: argparse.Namespace) -> int:
 
 
 def cmd_report(args: argparse.Namespace) -> int:
+    """``cfharness report RUN...``: the Markdown and HTML reports in ``--out`` (default
+    ``RUN/report``), or with ``--bundle [PATH]`` a portable bundle (default ``RUN/report-bundle``;
+    a ``.zip`` path also writes the zip). A bad argument or input is one line and exit status 2."""
     from harness.replay.video import render_missing_videos
     from harness.report.html import write_reports
 
+    bundle = args.bundle
+    if args.bundle_maps and bundle is None:
+        bundle = ""  # --bundle-maps alone: the default bundle, maps included
+    if bundle is not None and args.out:
+        print("cfharness report: --out and --bundle both name where to write; give one (--bundle PATH)", file=sys.stderr)
+        return 2
     try:  # a missing folder, an empty or corrupt results file: one line and exit 2, no traceback
         for run in args.runs:  # videos of the recordings that have none yet, beside them
             render_missing_videos(run)
-        path, html_path = write_reports(list(args.runs), Path(args.out) if args.out else Path(args.runs[0]) / "report")
+        if bundle is not None:
+            from harness.report.bundle import write_bundle
+
+            done = write_bundle(list(args.runs), Path(bundle) if bundle else Path(args.runs[0]) / "report-bundle",
+                                maps=args.bundle_maps)
+        else:
+            path, html_path = write_reports(list(args.runs), Path(args.out) if args.out else Path(args.runs[0]) / "report")
     except (ValueError, OSError) as exc:
         print(f"cfharness report: {exc}", file=sys.stderr)
         return 2
-    print(f"report: {path}\nHTML report: {html_path}")
+    if bundle is not None:
+        print(f"report bundle: {done.folder} ({len(done.files)} files: {done.videos} videos, "
+              f"{done.maps if args.bundle_maps else 'no'} maps){f'; zip: {done.zip_path}' if done.zip_path else ''}")
+    else:
+        print(f"report: {path}\nHTML report: {html_path}")
     return 0
 
 
@@ -557,6 +576,13 @@ def add_eval_commands(sub) -> None:
                          "Several run folders are compared side by side.")
     rep.add_argument("runs", nargs="+", help="run folders")
     rep.add_argument("--out", help="report folder (default: RUN/report)")
+    rep.add_argument("--bundle", nargs="?", const="", default=None, metavar="PATH",
+                     help="write a portable report instead: one folder (default: RUN/report-bundle; PATH ending .zip: "
+                     "that folder less .zip, and the zip of it) with report.html, report.md, the figures, the failure "
+                     "pages and a copy of every replay video they link, all links inside it")
+    rep.add_argument("--bundle-maps", action="store_true",
+                     help="copy the final maps into the bundle too (hundreds of MB; without it a map cell gives the "
+                     "command that opens it from the run folder)")
     rep.set_defaults(func=cmd_report)
 
     rpl = sub.add_parser(

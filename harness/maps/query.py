@@ -22,6 +22,7 @@ with an oracle (``oracle``, ``oracle-open``) their metrics are ``None``. Objects
 from __future__ import annotations
 
 import functools
+import io
 import math
 import time
 import zlib
@@ -30,11 +31,12 @@ from pathlib import Path
 import numpy as np
 
 from agents.builtin import make_mapper
+from conceptfusion.io_utils import atomic_write_bytes
 from conceptfusion.perception.featurizer import is_oracle
 from harness.maps.scan import SceneScan, fuse_frames, load_shipped_scene, point_labels, scan_tabletop, scene_kind, shipped_scene_ids
 from sim_envs.mujoco.scan import render_views
 
-__all__ = ["run_query_scene", "locate_vector", "iou", "select_points", "MODALITIES", "IOU_LEVELS"]
+__all__ = ["run_query_scene", "locate_vector", "iou", "select_points", "MODALITIES", "IOU_LEVELS", "HEATMAP_VERSION", "RIGHT_IOU"]
 
 MODALITIES = ("text", "image", "click")
 IOU_LEVELS = (0.15, 0.25, 0.5)
@@ -135,6 +137,42 @@ def _summary(ious: list[float | None], found: list[bool]) -> dict:
     return out
 
 
+HEATMAP_VERSION = 2
+"""Version of the heatmap file :func:`run_query_scene` writes (1: ``points``, ``values``, ``query``
+only; 2 adds the ground truth, the answer and the verdict)."""
+RIGHT_IOU = 0.25
+"""A query is answered right when its region's IoU with the object passes this (``text_acc25``)."""
+
+
+def _scene_box(scan: SceneScan) -> np.ndarray:
+    """The box around the table top and every object, (2, 3) lower and upper corners: what a
+    top-down heatmap is cropped to (the floor around the table is left out)."""
+    boxes = [np.asarray(scan.object_boxes, np.float64).reshape(-1, 2, 3)]
+    t = scan.scene.table
+    if t is not None:
+        c, h = np.asarray(t.center, np.float64), np.asarray(t.size, np.float64) / 2
+        boxes.append(np.stack([c - h, c + h])[None])
+    allb = np.concatenate(boxes)
+    return np.stack([allb[:, 0].min(axis=0), allb[:, 1].max(axis=0)])
+
+
+def _save_heatmap(path, pts, res, obj, gt_box, scene_box, scored: dict) -> None:
+    """Write a text query's heatmap file atomically (format :data:`HEATMAP_VERSION`): ``points``
+    (N, 3) and ``values`` (N,) relevancy (0 where a point has no concept vector), ``query`` (the
+    text), ``object`` (its id), ``gt_box`` (2, 3) the object's box, ``scene_box`` (2, 3) the table
+    and objects, ``answer_indices`` (K,) the points of the found region (empty when not found),
+    ``found``, ``iou``, ``iou_thresh``, ``right_iou`` and ``version``."""
+    answer = res.regions[0].indices_n if res.found and res.regions else np.zeros(0, np.int64)
+    buf = io.BytesIO()
+    np.savez_compressed(
+        buf, points=pts.astype(np.float32), values=np.nan_to_num(res.relevancy_n, nan=0.0).astype(np.float32),
+        query=str(obj.name), object=str(obj.id), gt_box=np.asarray(gt_box, np.float32),
+        scene_box=np.asarray(scene_box, np.float32), answer_indices=np.asarray(answer, np.int32),
+        found=bool(scored["found"]), iou=float(scored["iou"]), iou_thresh=float(scored["iou_thresh"]),
+        right_iou=float(RIGHT_IOU), version=int(HEATMAP_VERSION))
+    atomic_write_bytes(path, buf.getvalue())
+
+
 def run_query_scene(
     scene_id: str, encoder: str, *, frames: int = 12, width: int = 160, height: int = 120, seed: int = 0,
     heatmap_path: str | Path | None = None,
@@ -144,8 +182,8 @@ def run_query_scene(
     ``metrics``: ``{modality}_miou``, ``{modality}_acc15|25|50``, ``{modality}_found_rate``,
     ``{modality}_miou_thresh``, ``absent_fp_rate``, ``n_objects``, ``n_skipped``,
     ``map_points``. ``extras["queries"]``: one entry per object and modality. With
-    ``heatmap_path``, the first object's text relevancy is saved there as an .npz with
-    ``points`` (N, 3) and ``values`` (N,) (0 where a point has no concept vector).
+    ``heatmap_path``, the first scored object's text query is saved there as an .npz (see
+    :func:`_save_heatmap`: relevancy per point, the query, its ground-truth box and its answer).
     """
     t0 = time.perf_counter()
     scan = scan_tabletop(scene_id, "query", frames=frames, width=width, height=height)
@@ -170,10 +208,6 @@ def run_query_scene(
         entry = {"object": obj.id, "name": obj.name, "gt_points": int(truth.sum())}
         vectors = {"text": None, "image": None, "click": None}
         res_text = mapper.locate(obj.name)
-        if heatmap_path is not None and not queries:
-            Path(heatmap_path).parent.mkdir(parents=True, exist_ok=True)
-            np.savez_compressed(heatmap_path, points=pts.astype(np.float32),
-                                values=np.nan_to_num(res_text.relevancy_n, nan=0.0).astype(np.float32), query=obj.name)
         if views is not None:
             vectors["image"] = _image_query(mapper.encoder, views, i)
         centre = scan.object_boxes[i].mean(axis=0)
@@ -195,6 +229,8 @@ def run_query_scene(
             ious_t[m].append(vt)
             found[m].append(bool(res.found))
             entry[m] = {"iou": round(v, 4), "iou_thresh": round(vt, 4), "found": bool(res.found)}
+        if heatmap_path is not None and not queries:
+            _save_heatmap(heatmap_path, pts, res_text, obj, scan.object_boxes[i], _scene_box(scan), entry["text"])
         queries.append(entry)
     absent = []
     for name in _absent_names(scan.scene, seed):

@@ -33,6 +33,10 @@ class Cell:
     """(mean, low, high) in [0, 1]: drawn as a small bar with its interval in the HTML report."""
     title: str | None = None
     """Hover text in the HTML report."""
+    command: str | None = None
+    """A shell command the HTML report shows under the text with a copy button (the map viewer's)."""
+    note: str | None = None
+    """Small text the HTML report shows under the text: what is missing and why."""
 
 
 @dataclass(frozen=True)

@@ -26,6 +26,7 @@ from pathlib import Path
 from conceptfusion.io_utils import atomic_write_text
 from harness.report.document import Bullets, Card, Cards, Cell, Figure, Heading, Paragraph, ReportDocument, Table
 from harness.report.markdown import build_report, write_markdown
+from harness.report.widgets import WIDGET_CSS, WIDGET_JS, command_html
 
 __all__ = ["HTML_FILE", "render_html", "write_html", "write_html_report", "write_reports"]
 
@@ -197,6 +198,10 @@ def _td(cell: Cell | str, wrap: bool = False, extra: str = "", pin: bool = False
         text = f'<a href="{html.escape(c.href)}">{text}</a>'
     if c.interval is not None:
         text = _interval_bar(*c.interval) + text
+    if c.command:
+        text += " " + command_html(c.command, c.note or "")
+    elif c.note:
+        text += f'<span class="cf-note">{html.escape(c.note)}</span>'
     classes = ["pin"] if pin else []
     if isinstance(c.sort, (int, float)) and not isinstance(c.sort, bool):
         classes.append("num")
@@ -333,9 +338,9 @@ def render_html(doc: ReportDocument) -> str:
     return "\n".join([
         "<!DOCTYPE html>", '<html lang="en"><head><meta charset="utf-8">',
         '<meta name="viewport" content="width=device-width, initial-scale=1">',
-        f"<title>{html.escape(doc.title)}</title><style>{_CSS}</style></head><body>",
+        f"<title>{html.escape(doc.title)}</title><style>{_CSS}{WIDGET_CSS}</style></head><body>",
         f"<h1>{html.escape(doc.title)}</h1>", "<nav>" + "".join(nav) + "</nav>", *parts,
-        f"<script>{_JS}</script>", "</body></html>", "",
+        f"<script>{_JS}{WIDGET_JS}</script>", "</body></html>", "",
     ])
 
 

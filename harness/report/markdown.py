@@ -23,13 +23,17 @@ rendered to Markdown here and to a self-contained HTML page by :mod:`harness.rep
   between-seed spread (std and min-max of the per-seed rates), and every pair of agents whose
   difference is within that noise flagged;
 - with several runs, per suite the success of every run side by side;
-- for agents whose records carry ``extras.path_xy``, a top-down view of a few episodes over the
-  floor plan of ``extras.scene`` (a path under ``scenes/``) with start and goal;
+- for agents whose records carry ``extras.path_xy``, a top-down view of a few failed and
+  successful episodes over the floor plan of ``extras.scene`` (a path under ``scenes/``) with
+  goal text, start, end and success region (:mod:`harness.report.figures`);
+- per suite with failures, their count per cause and agent, linking the suite's failure page
+  ``failures-<suite>.html`` (:mod:`harness.report.failures`);
 - per suite, one row per episode (HTML only: :mod:`harness.report.episodes`), failures first,
-  linking the episode's replay video and map when ``RUN/replays`` holds them;
-- for records with ``extras.heatmap_npz`` (``points`` (N, 3), ``values`` (N,)), a top-down
-  heatmap. A relative path is taken from the run folder the record came from (from
-  ``base_dir`` for records passed directly).
+  with goal, category and cause, linking the episode's replay video and map when
+  ``RUN/replays`` holds them;
+- for records with ``extras.heatmap_npz`` (written by :mod:`harness.maps.query`), a top-down
+  heatmap of the query over the table with its ground truth and verdict. A relative path is
+  taken from the run folder the record came from (from ``base_dir`` for records passed directly).
 
 What cannot be drawn (no categories, a missing scene or heatmap file) is skipped, and the
 report's last section says what was skipped and why.
@@ -43,13 +47,15 @@ import re
 from collections import Counter
 from pathlib import Path
 
-import numpy as np
 
 from conceptfusion.errors import MissingFileError
 from conceptfusion.io_utils import atomic_write_bytes, atomic_write_text
+from harness.report import figures as report_figures
 from harness.report import plots as report_plots
 from harness.report.cards import answer_card, section_anchor, suite_answers
 from harness.report.episodes import episode_table
+from harness.report.failures import failure_section
+from harness.report.links import ReportLinks
 from harness.report.document import Bullets, Cards, Cell, Figure, Heading, Paragraph, ReportDocument, Table, render_markdown
 from harness.report.labels import column_order, metric_label
 from harness.runner.results import RESULTS_FILE, ResultsFormatError, load_results, record_key, warn_record_problems
@@ -58,8 +64,6 @@ from harness.report.stats import group_key, paired_comparison, per_category, see
 __all__ = ["write_report", "build_report", "write_markdown", "REPORT_FILE"]
 
 REPORT_FILE = "report.md"
-_PATH_EPISODES = 3
-_MAX_HEATMAPS = 4
 _MAX_PAIRS = 24
 _TABLE_BOX_PX = 1232
 """Width of the HTML report's content box: a suite table starts with the column groups that fit
@@ -388,86 +392,22 @@ def _grouped_sections(records, suite: str) -> list:
     return blocks
 
 
-def _scene_grid(ref: str, cache: dict):
-    if ref not in cache:
-        from sim_envs.scenes.episodes import SCENES_ROOT
-        from sim_envs.scenes.floorplan import occupancy_grid
-        from sim_envs.scenes.format import load_scene
-
-        path = Path(ref) if Path(ref).is_absolute() else SCENES_ROOT / ref
-        try:
-            cache[ref] = occupancy_grid(load_scene(path))
-        except (OSError, ValueError) as exc:
-            cache[ref] = exc
-    return cache[ref]
-
-
 def _path_figures(records, suite: str, w: _Writer) -> list:
-    lines, cache = [], {}
-    by_group: dict[tuple, list[dict]] = {}
-    for r in records:
-        if (r.get("extras") or {}).get("path_xy"):
-            by_group.setdefault(group_key(r), []).append(r)
-    for key in sorted(by_group):
-        chosen = sorted(by_group[key], key=lambda r: (r["episode_id"], r["seed"]))[:_PATH_EPISODES]
-        panels = []
-        for r in chosen:
-            ex = r["extras"]
-            success = (r.get("metrics") or {}).get("success")
-            panel = {"path_xy": ex["path_xy"], "start_xy": ex.get("start_xy"), "goal_xy": ex.get("goal_xy"),
-                     "label": f"{r['episode_id']} seed {r['seed']}: "
-                              f"{'success' if success else r['status'] if r['status'] != 'ok' else 'miss'}"}
-            scene = ex.get("scene")
-            grid = _scene_grid(str(scene), cache) if scene else None
-            if isinstance(grid, Exception):
-                w.skip(f"floor plan of {scene} ({r['episode_id']})", str(grid))
-            elif grid is not None:
-                panel.update(blocked_hw=grid.blocked_hw, origin=grid.origin, cell=grid.cell)
-            else:
-                w.skip(f"floor plan for {r['episode_id']} ({key[1]})", "record names no extras.scene")
-            panels.append(panel)
-        try:
-            png = report_plots.topdown_paths(panels, title=f"{key[1]} ({key[2]}), suite {suite}")
-        except (ValueError, TypeError) as exc:
-            w.skip(f"top-down paths of {key[1]} ({key[2]})", str(exc))
-            continue
-        name = w.figure(f"paths_{suite}_{key[1]}_{key[2]}", png)
-        lines.append(Figure(name, f"paths of {key[1]} ({key[2]})"))
-    return lines
+    return report_figures.path_figures(records, suite, w)
 
 
 def _heatmap_figures(items, w: _Writer) -> list:
-    lines, drawn = [], 0
-    for r, base in items:
-        ref = (r.get("extras") or {}).get("heatmap_npz")
-        if not ref:
-            continue
-        if drawn >= _MAX_HEATMAPS:
-            w.skip(f"heatmap of {r['episode_id']} ({r['agent']})", f"only the first {_MAX_HEATMAPS} are drawn")
-            continue
-        path = Path(ref)
-        if not path.is_absolute() and base is not None:
-            path = base / path
-        try:
-            with np.load(path) as npz:
-                points, values = npz["points"], npz["values"]
-            png = report_plots.heatmap_topdown(points, values, title=f"{r['episode_id']}: "
-                                               f"{(r.get('extras') or {}).get('query', r['agent'])}")
-        except (OSError, KeyError, ValueError) as exc:
-            w.skip(f"heatmap {ref} ({r['episode_id']})", str(exc))
-            continue
-        name = w.figure(f"heatmap_{r['suite']}_{r['episode_id']}_{r['seed']}", png)
-        lines.append(Figure(name, f"query heatmap, {r['episode_id']}"))
-        drawn += 1
-    return ([Heading(2, "Query heatmaps")] + lines) if lines else []
+    return report_figures.heatmap_figures(items, w)
 
 
 def build_report(run_dirs_or_records, out_dir: str | os.PathLike, *,
                  title: str = "ConceptFusion harness report",
-                 base_dir: str | os.PathLike | None = None) -> ReportDocument:
-    """Build the report as data and write its PNG figures into ``out_dir``.
+                 base_dir: str | os.PathLike | None = None, links: ReportLinks | None = None) -> ReportDocument:
+    """Build the report as data and write its PNG figures and failure pages into ``out_dir``.
 
-    Arguments as for :func:`write_report`. Raises ``ValueError`` when there is nothing to report.
+    Arguments as for :func:`write_report`; ``links`` says how pages link replay videos and maps
+    (default: relative to ``out_dir``; a bundle copies them in). Raises ``ValueError`` when there
+    is nothing to report.
     """
     collected = _collect(run_dirs_or_records, base_dir)
     run_items = list({(label, record_key(r)): (r, b, label) for r, b, label in collected}.values())
@@ -478,6 +418,7 @@ def build_report(run_dirs_or_records, out_dir: str | os.PathLike, *,
     out = Path(out_dir)
     out.mkdir(parents=True, exist_ok=True)
     w = _Writer(out)
+    links = links or ReportLinks(out)
     rows = summarize(records)
     several_runs = len({label for _, _, label in run_items}) > 1
     answers = suite_answers(records)
@@ -514,7 +455,8 @@ def build_report(run_dirs_or_records, out_dir: str | os.PathLike, *,
         path_blocks = _path_figures(suite_recs, suite, w)
         if path_blocks:
             blocks += [Heading(3, "Episodes from above")] + path_blocks
-        blocks.append(episode_table(run_items, suite, out, show_run=several_runs))
+        blocks += failure_section(run_items, suite, links)
+        blocks.append(episode_table(run_items, suite, out, show_run=several_runs, links=links))
     blocks += _heatmap_figures(items, w)
     blocks += [Heading(2, "Skipped"), Bullets(tuple(w.skipped) or ("nothing",))]
     return ReportDocument(title=title, out_dir=out, blocks=blocks, figures=w.figures, items=run_items)

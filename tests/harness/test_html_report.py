@@ -83,11 +83,12 @@ def _parse(text):
 
 
 def _md_tables(text):
-    """(header, rows) of every Markdown table, cells unescaped."""
+    """(header, rows) of every Markdown table, cells unescaped and links as their text."""
     out, lines = [], text.splitlines()
     for i, line in enumerate(lines):
         if line.startswith("|") and i + 1 < len(lines) and lines[i + 1].startswith("|---"):
-            split = lambda l: [c.strip().replace("\\|", "|") for c in re.split(r"(?<!\\)\|", l)[1:-1]]
+            split = lambda l: [re.sub(r"^\[(.*)\]\([^)]*\)$", r"\1", c.strip()).replace("\\|", "|")
+                               for c in re.split(r"(?<!\\)\|", l)[1:-1]]
             rows, j = [], i + 2
             while j < len(lines) and lines[j].startswith("|"):
                 rows.append(split(lines[j]))
