@@ -38,12 +38,14 @@ import math
 import os
 import re
 import struct
+import zipfile
 from dataclasses import dataclass
 from pathlib import Path
 from typing import Iterator, Sequence
 
 import numpy as np
 
+from conceptfusion.array_files import MAX_NPZ_BYTES, check_npz_headers
 from conceptfusion.cameras import check_pose
 from conceptfusion.errors import FrameFolderError, MissingFileError, PoseError
 from conceptfusion.frames import RGBDFrame
@@ -232,11 +234,7 @@ def _check_scale(scale, integer: bool, where: str) -> float:
 
 
 def _check_npz(path: Path) -> FrameSource:
-    import zipfile
-
-    from conceptfusion.array_files import check_npz_headers
-
-    check_regular_file(path, "frame file", FrameFolderError, 2**40)
+    check_regular_file(path, "frame file", FrameFolderError, MAX_NPZ_BYTES)
     try:
         headers = check_npz_headers(path, FrameFolderError, what="frame file")
     except (zipfile.BadZipFile, OSError) as exc:
@@ -251,6 +249,9 @@ def _check_npz(path: Path) -> FrameSource:
         raise FrameFolderError(f"{path}: rgb: expected (H, W, 3) uint8, got {rgb.shape} {rgb.dtype}")
     if len(depth.shape) != 2 or depth.dtype.kind not in "fiu":
         raise FrameFolderError(f"{path}: depth: expected (H, W) float metres or integer with depth_scale, got {depth.shape} {depth.dtype}")
+    for key in ("K", "cam_to_world"):
+        if arrays[key].dtype.kind not in "fiu":
+            raise FrameFolderError(f"{path}: {key}: expected numbers, got {arrays[key].dtype}")
     if depth.shape != rgb.shape[:2]:
         raise FrameFolderError(f"{path}: rgb is {rgb.shape[1]}x{rgb.shape[0]} but depth is {depth.shape[1]}x{depth.shape[0]} "
                                "(expected the same size, depth registered to rgb)")

@@ -14,9 +14,8 @@ Perception is the featurizer's business (built by
 encoder) or a privileged oracle (ground-truth segmentation labelled with name embeddings, or with
 orthogonal codes and ground-truth grounding of descriptions, ``oracle-open``; both need the
 simulator's segmentation, passed explicitly, and the labels' names or phrases at
-:meth:`ConceptMapper.reset`, which :func:`agents.concept_map.privileged_labels` reads from an
-environment's info). :attr:`ConceptMapper.privileged` says which; results built on a privileged
-map must say so.
+:meth:`ConceptMapper.reset`, which the agents read from an environment's info).
+:attr:`ConceptMapper.privileged` says which; results built on a privileged map must say so.
 
 A single-frame (2.5D) agent uses the same mapper with ``persistent=False``: every frame
 replaces the map, so answers come from the current view only.

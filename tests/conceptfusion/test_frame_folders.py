@@ -193,6 +193,12 @@ def _folder_with(*names):
     return make
 
 
+def _not_an_archive(tmp_path):
+    root, kw = _npz(tmp_path)
+    (root / "frame_000002.npz").write_bytes(b"rgb,depth\n")
+    return root, kw
+
+
 def _both_layouts(tmp_path):
     root, kw = _npz(tmp_path)
     (root / "rgb.txt").write_text("")
@@ -222,6 +228,7 @@ BAD_FOLDERS = [
      r"frame_000001\.npz: the principal point \(cx, cy\) = \(400, 59\.5\) lies outside the 160x120 image"),
     ("npz: negative focal length", lambda t: _npz(t, f1={"K": _K_neg}), FrameFolderError,
      r"frame_000001\.npz: focal lengths fx = 103\.9\d*, fy = -103\.9\d*: expected positive"),
+    ("npz: not an archive", _not_an_archive, FrameFolderError, r"frame_000002\.npz: not a readable \.npz archive"),
     ("npz: integer depth, no scale", lambda t: _npz(t, f2={"depth": np.zeros((H, W), np.uint16)}), FrameFolderError,
      r"frame_000002\.npz: depth is integer-valued without depth_scale"),
     ("tum: missing depth file", _tum_missing_depth, MissingFileError,
