@@ -12,8 +12,8 @@ Perception is chosen per agent with ``encoder``:
 * ``"embedded"`` (default): the shipped image tower + MiniLM text tower with RGB-D mask proposals;
 * any other encoder registry spec (``"hf:..."``, ``"onnx:DIR"``, ``"color"``) with ``proposer``.
 
-Either way the mapper is built by :func:`make_mapper` from a
-:class:`~conceptfusion.perception.featurizer.PerceptionSpec`, as the map suites build theirs.
+Either way the mapper is built by :func:`make_mapper` (that is :func:`conceptfusion.make_mapper`)
+from a :class:`~conceptfusion.perception.featurizer.PerceptionSpec`, as the map suites build theirs.
 
 =================  ===================  ==========  ======================================
 name               task                 map         what
@@ -33,27 +33,23 @@ random-walker      object_search        no          random velocities
 
 from __future__ import annotations
 
-from agents.concept_map import ConceptMapper, MapperConfig
+import conceptfusion.mapper
+from agents.concept_map import ConceptMapper
 from agents.spec import AgentSpec, Option, register_agent
-from conceptfusion.perception.featurizer import SEARCH_PROPOSER, FrameFeaturizer, PerceptionSpec, make_featurizer, score_floor_for
+from conceptfusion.perception.featurizer import SEARCH_PROPOSER, FrameFeaturizer, PerceptionSpec
 
 __all__ = ["make_mapper"]
 
 
 def make_mapper(
-    perception: PerceptionSpec | str | FrameFeaturizer = "embedded", proposer: str = "rgbd", *, persistent: bool = True,
-    setting: str = "tabletop", semantic_views: int = 0,
+    perception: PerceptionSpec | str | FrameFeaturizer = "embedded", proposer: str = "rgbd", *, setting: str = "tabletop",
+    **config,
 ) -> ConceptMapper:
-    """A :class:`ConceptMapper` for a perception spec (see the module docstring), with the
-    featurizer's score floor for ``setting`` (``"tabletop"``, ``"household"`` or ``"search"``, see
-    :func:`~conceptfusion.perception.featurizer.score_floor_for`: the v2 tower ships a floor
-    calibrated on apartments).
+    """The agents' mapper: :func:`conceptfusion.make_mapper` (the one builder of mappers, with the
+    encoder's calibrated score floor for ``setting`` on), which see for the arguments.
 
     ``semantic_views``: 0 fuses concept vectors (the map agents); ``k`` keeps each of the last
-    ``k`` frames' apart (the matched map-free twins, see :class:`~agents.concept_map.MapperConfig`).
-
-    ``perception`` is an encoder spec string (``proposer`` then names the mask proposer), a
-    :class:`~conceptfusion.perception.featurizer.PerceptionSpec`, or a featurizer already built.
+    ``k`` frames' apart (the matched map-free twins, see :class:`~conceptfusion.mapper.MapperConfig`).
 
     Example::
 
@@ -66,17 +62,7 @@ def make_mapper(
     Raises:
         UnknownNameError: unknown encoder or proposer name (naming the nearest valid ones).
     """
-    provenance = {"setting": setting}
-    if isinstance(perception, (str, PerceptionSpec)):
-        spec = PerceptionSpec.parse(perception, proposer=proposer) if isinstance(perception, str) else perception
-        featurizer = make_featurizer(spec)
-        provenance.update(encoder=spec.encoder, proposer=spec.proposer)
-    else:
-        featurizer = perception
-    mapper = ConceptMapper(featurizer, MapperConfig(persistent=persistent, semantic_views=semantic_views,
-                                                    min_score=score_floor_for(featurizer, setting)))
-    mapper.provenance = provenance
-    return mapper
+    return conceptfusion.mapper.make_mapper(perception, proposer, setting=setting, **config)
 
 
 PUSHER_TWIN_VIEWS = 64

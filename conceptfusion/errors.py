@@ -18,6 +18,7 @@ __all__ = [
     "PoseError",
     "MapFormatError",
     "MapVersionError",
+    "FrameFolderError",
     "MissingFileError",
     "MissingDependencyError",
     "CheckpointError",
@@ -56,6 +57,12 @@ class MapFormatError(ConceptFusionError, ValueError):
 
 class MapVersionError(MapFormatError):
     """A map file was written by a newer format version than this code reads."""
+
+
+class FrameFolderError(ConceptFusionError, ValueError):
+    """A folder of a user's RGB-D frames (:mod:`conceptfusion.frame_folders`) that cannot be
+    mapped: an unknown layout, a frame file without depth, sizes that differ, a pose that is not
+    rigid or finite, intrinsics that do not fit the image; the message names the file."""
 
 
 class MissingFileError(ConceptFusionError, FileNotFoundError):

@@ -202,6 +202,9 @@ def build_parser() -> argparse.ArgumentParser:
                       help="points sent to the browser at most; larger maps are thinned (default: 2000000)")
     view.add_argument("--open", action="store_true", help="open the page in the default web browser")
     view.set_defaults(func=_cmd_view)
+    from harness.map_command import add_map_command
+
+    add_map_command(sub)
     from harness.commands import add_eval_commands
 
     add_eval_commands(sub)

@@ -24,7 +24,7 @@ def test_the_public_names_are_the_ones_documented():
     import agents
     import conceptfusion
 
-    assert set(conceptfusion.__all__) == {"RGBDFrame", "load_map", "make_encoder", "register_encoder", "save_map"}
+    assert set(conceptfusion.__all__) == {"RGBDFrame", "load_map", "make_encoder", "make_mapper", "register_encoder", "save_map"}
     assert {"register_agent", "make_agent", "make_mapper", "AgentSpec", "Option"} == set(agents.__all__)
     assert set(conceptfusion.__all__) <= set(dir(conceptfusion))
 
