@@ -586,16 +586,10 @@ class EpisodeRecorder:
 
 
 def map_meta(mapper, agent: str | None = None) -> dict:
-    """What a saved map records of how it was made and asked (its ``meta``, see
-    :data:`conceptfusion.map.persistence.META_KEYS`): the mapper's encoder, proposer and
-    score-floor setting (:attr:`~agents.concept_map.ConceptMapper.provenance`), its floor, the
-    lookup its agent used (:attr:`~agents.concept_map.ConceptMapper.lookup_used`) and the agent."""
-    meta = {k: v for k, v in (getattr(mapper, "provenance", None) or {}).items() if k in ("encoder", "proposer", "setting")}
-    config = getattr(mapper, "config", None)
-    if config is not None and hasattr(config, "min_score"):
-        floor = config.min_score
-        meta["min_score"] = None if floor is None else float(floor)
-    meta.update(getattr(mapper, "lookup_used", None) or {})
+    """What a saved map records of how it was made and asked (its ``meta``): the mapper's own
+    (:meth:`conceptfusion.mapper.ConceptMapper.meta`: encoder, proposer, setting, floor, the
+    lookup its agent used) and the agent; ``{}`` (plus the agent) for a mapper without one."""
+    meta = dict(mapper.meta()) if callable(getattr(mapper, "meta", None)) else {}
     if isinstance(agent, str) and agent:
         meta["agent"] = agent
     return meta
