@@ -419,6 +419,16 @@ def cmd_report(args: argparse.Namespace) -> int:
     from harness.replay.video import render_missing_videos
     from harness.report.html import write_reports
 
+    if args.results_page:
+        from harness.report.results_page import write_results_page
+
+        try:
+            page = write_results_page(list(args.runs), args.results_page)
+        except (ValueError, OSError) as exc:
+            print(f"cfharness report: {exc}", file=sys.stderr)
+            return 2
+        print(f"results page: {page}")
+        return 0
     bundle = args.bundle
     if args.bundle_maps and bundle is None:
         bundle = ""  # --bundle-maps alone: the default bundle, maps included
@@ -580,6 +590,9 @@ def add_eval_commands(sub) -> None:
                      help="write a portable report instead: one folder (default: RUN/report-bundle; PATH ending .zip: "
                      "that folder less .zip, and the zip of it) with report.html, report.md, the figures, the failure "
                      "pages and a copy of every replay video they link, all links inside it")
+    rep.add_argument("--results-page", metavar="PATH",
+                     help="write the documentation's results page instead (docs/results.md): the sealed headline "
+                     "recomputed from the shipped records, then the runs' report tables, no figures or episode rows")
     rep.add_argument("--bundle-maps", action="store_true",
                      help="copy the final maps into the bundle too (hundreds of MB; without it a map cell gives the "
                      "command that opens it from the run folder)")
