@@ -9,14 +9,15 @@ of its whole file), refuses records of any other episode file, and writes:
   group and the ``twin_of`` / ``uses_map`` / ``privileged`` marks);
 - ``harness/data/sealed/measured.json``: the figures (:func:`headline`) with the commit that
   measured them and the sealed manifest's SHA-256;
-- the README's headline tables, between its markers (:func:`readme_with_tables`).
+- the README's headline table, between its markers (:func:`readme_with_tables`).
 
 Figures, per suite and encoder: every agent's success with its 95% Wilson interval; each map
 agent minus its matched twin, paired per episode (bootstrap interval, exact McNemar); the chain
 suite's success per position (``reached_k``: the first k goals in a row); and, per agent, success
 by the goal's split group (seen, held-out instance, held-out category). The README's headline
-tables are :func:`headline_table`, :func:`positions_table` and :func:`agents_table` of this file;
-a test recomputes the file from the records.
+table is :func:`headline_table`; :func:`positions_table` and :func:`agents_table` go on the
+generated results page (:mod:`harness.report.results_page`); a test recomputes the file from the
+records.
 """
 
 from __future__ import annotations
@@ -170,7 +171,8 @@ README_END = "<!-- end of the headline tables -->"
 
 def readme_with_tables(readme: str, measured: dict) -> str:
     """``readme`` with the text between :data:`README_START` and :data:`README_END` replaced by the
-    headline tables of ``measured``.
+    headline table of ``measured`` (:func:`headline_table`: each map agent against its matched
+    twin; the chain positions and every agent's success are on the generated results page).
 
     Raises:
         HarnessError: the README lacks the markers.
@@ -180,8 +182,7 @@ def readme_with_tables(readme: str, measured: dict) -> str:
         _, tail = rest.split(README_END, 1)
     except ValueError:
         raise HarnessError(f"README: expected the markers {README_START!r} and {README_END!r} around the headline tables") from None
-    tables = "\n\n".join((headline_table(measured), positions_table(measured), agents_table(measured)))
-    return f"{head}{README_START}\n{tables}\n{README_END}{tail}"
+    return f"{head}{README_START}\n{headline_table(measured)}\n{README_END}{tail}"
 
 
 def _manifest_sha() -> str:
