@@ -42,3 +42,16 @@ def test_the_docs_site_builds_in_strict_mode(tmp_path):
     for name in ("register_encoder", "make_mapper", "register_agent", "RGBDFrame", "load_map"):
         assert re.search(rf'id="[a-z_.]+\.{name}"', api), name
     assert "Example" in api and "Raises" in api
+
+
+def test_the_first_hour_benchmark_reads_the_readme_quickstart():
+    """``benchmarks/bench_first_hour.py`` times the README's quickstart run literally: it finds
+    the demo, a small run that writes a report, and the viewer."""
+    sys.path.insert(0, str(REPO / "benchmarks"))
+    try:
+        from bench_first_hour import quickstart_commands
+    finally:
+        sys.path.remove(str(REPO / "benchmarks"))
+    cmds = quickstart_commands((REPO / "README.md").read_text())
+    assert [c.split()[:2] for c in cmds] == [["cfharness", "demo"], ["cfharness", "run"], ["cfharness", "view"]]
+    assert "--out runs/" in cmds[1] and "#" not in " ".join(cmds)
