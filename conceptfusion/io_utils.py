@@ -21,13 +21,14 @@ from __future__ import annotations
 
 import os
 import stat
+import shutil
 import tempfile
 from pathlib import Path
 
 from conceptfusion.errors import MissingFileError
 
 __all__ = [
-    "atomic_write_bytes", "atomic_write_text", "read_text_file", "read_json_file", "read_json_document", "read_file_bytes",
+    "atomic_write_bytes", "atomic_copy", "atomic_write_text", "read_text_file", "read_json_file", "read_json_document", "read_file_bytes",
     "check_regular_file", "MAX_SCENE_BYTES", "MAX_EPISODES_BYTES", "MAX_RESULTS_BYTES", "MAX_DOCUMENT_BYTES",
 ]
 
@@ -108,18 +109,16 @@ def read_file_bytes(path: str | os.PathLike, what: str, error: type[Exception], 
     return data
 
 
-def atomic_write_bytes(path: str | os.PathLike, data: bytes) -> Path:
-    """Write ``data`` to ``path`` atomically (temporary file in the same folder, fsync, rename).
-
-    Creates missing parent folders. Returns the path written.
-    """
+def _atomic_write(path: str | os.PathLike, write) -> Path:
+    """Call ``write(f)`` on a temporary file beside ``path`` (binary), fsync it and rename it to
+    ``path``; the temporary file is removed when anything fails. Creates missing parent folders."""
     target = Path(path)
     target.parent.mkdir(parents=True, exist_ok=True)
     fd, tmp = tempfile.mkstemp(prefix=f".{target.name}.", suffix=".tmp", dir=target.parent)
     try:
         os.fchmod(fd, 0o666 & ~_umask())  # mkstemp creates 0600; give the usual file mode
         with os.fdopen(fd, "wb") as f:
-            f.write(data)
+            write(f)
             f.flush()
             os.fsync(f.fileno())
         os.replace(tmp, target)
@@ -130,6 +129,21 @@ def atomic_write_bytes(path: str | os.PathLike, data: bytes) -> Path:
             pass
         raise
     return target
+
+
+def atomic_write_bytes(path: str | os.PathLike, data: bytes) -> Path:
+    """Write ``data`` to ``path`` atomically (temporary file in the same folder, fsync, rename).
+
+    Creates missing parent folders. Returns the path written.
+    """
+    return _atomic_write(path, lambda f: f.write(data))
+
+
+def atomic_copy(src: str | os.PathLike, dst: str | os.PathLike) -> Path:
+    """Copy the file ``src`` to ``dst`` atomically, streamed (a map file can be hundreds of MB):
+    a temporary file beside ``dst``, fsync, rename. Creates missing parent folders. Returns ``dst``."""
+    with open(src, "rb") as inp:
+        return _atomic_write(dst, lambda f: shutil.copyfileobj(inp, f, 1 << 20))
 
 
 def _umask() -> int:

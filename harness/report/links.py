@@ -16,16 +16,15 @@ import functools
 import logging
 import os
 import shlex
-import shutil
-import tempfile
 from dataclasses import dataclass, field
 from pathlib import Path
 from urllib.parse import quote
 
+from conceptfusion.io_utils import atomic_copy
 from harness.report.causes import is_failure, is_scored
 from harness.report.paths import MAP_SUFFIX, REPLAYS_DIR, VIDEO_SUFFIXES, replay_stem
 
-__all__ = ["ReplayLinks", "ReportLinks", "encoder_problem", "copy_file_atomic", "BUNDLE_MAPS_DIR"]
+__all__ = ["ReplayLinks", "ReportLinks", "encoder_problem", "BUNDLE_MAPS_DIR"]
 
 _LOG = logging.getLogger(__name__)
 
@@ -64,26 +63,6 @@ def encoder_problem(encoder: str) -> str | None:
     except Exception as exc:  # a checkpoint error or a missing extra from a plugin's check
         return f"{type(exc).__name__}: {str(exc).splitlines()[0] if str(exc) else ''}"
     return None
-
-
-def copy_file_atomic(src: Path, dst: Path) -> Path:
-    """Copy ``src`` to ``dst`` through a temporary file in ``dst``'s folder and a rename, streamed
-    (maps can be hundreds of MB); creates missing folders. Returns ``dst``."""
-    dst.parent.mkdir(parents=True, exist_ok=True)
-    fd, tmp = tempfile.mkstemp(prefix=f".{dst.name}.", suffix=".tmp", dir=dst.parent)
-    try:
-        with os.fdopen(fd, "wb") as out, open(src, "rb") as inp:
-            shutil.copyfileobj(inp, out, 1 << 20)
-            out.flush()
-            os.fsync(out.fileno())
-        os.replace(tmp, dst)
-    except BaseException:
-        try:
-            os.unlink(tmp)
-        except FileNotFoundError:
-            pass
-        raise
-    return dst
 
 
 def _run_facts(run_dir: Path) -> tuple[str | None, str | None]:
@@ -132,7 +111,7 @@ class ReportLinks:
             i += 1
             ext = MAP_SUFFIX if src.name.endswith(MAP_SUFFIX) else src.suffix
             dst = self.out_dir / folder / f"{src.name[:len(src.name) - len(ext)]}-{i}{ext}"
-        self.copied[src] = copy_file_atomic(src, dst)
+        self.copied[src] = atomic_copy(src, dst)
         return dst
 
     def _run(self, run_dir: Path) -> tuple[str | None, str | None]:
