@@ -11,19 +11,12 @@ from __future__ import annotations
 
 import math
 
+from harness.runner.stop_reasons import STOP_REASONS
+
 __all__ = ["CAUSES", "RECORDED_CAUSES", "DERIVED_CAUSES", "DEFAULT_SUCCESS_RADIUS", "failure_cause", "cause_text",
            "is_scored", "is_failure", "success_radius", "goal_text"]
 
-RECORDED_CAUSES = {
-    "reached": "reached the goal (yet not scored a success)",
-    "not_found": "never found the goal object",
-    "wrong_object": "went to another object than the goal",
-    "missed": "stopped outside the success radius",
-    "planner": "the planner found no path",
-    "step_limit": "ran out of steps",
-    "timeout": "timed out (the harness's time limit)",
-    "error": "crashed (an exception; see the error)",
-}
+RECORDED_CAUSES = {**STOP_REASONS, "reached": "reached the goal (yet not scored a success)"}
 """The causes an episode records in ``extras["stop_reason"]``, with what each means."""
 
 DERIVED_CAUSES = {

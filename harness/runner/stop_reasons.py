@@ -62,13 +62,13 @@ __all__ = [
 
 STOP_REASONS: dict[str, str] = {
     "reached": "reached the goal",
-    "not_found": "never committed to a target",
-    "wrong_object": "went for another object",
-    "missed": "near the goal but not there",
-    "planner": "stuck or no path",
-    "step_limit": "ran out of steps",
-    "timeout": "harness timeout",
-    "error": "episode crashed",
+    "not_found": "never committed to a target (pushed nothing, or stopped away from all it approached)",
+    "wrong_object": "went for another object than the goal",
+    "missed": "got near the goal (or pushed it) but not far enough",
+    "planner": "stuck: no progress, or colliding, over its last steps",
+    "step_limit": "ran out of steps while still on its way",
+    "timeout": "timed out (the harness's time limit)",
+    "error": "crashed (an exception; see the error)",
 }
 """Every stop reason: word (``extras["stop_reason"]``) -> short label for people."""
 
