@@ -113,10 +113,6 @@ class PusherConfig:
     before) and 54 of the 59 held-out instances (50); on the calibration tables 69 against 67 (4
     gained, 2 lost). Answering every named object this way, found or not, gave 62 and 66: the
     query's own region separates objects that touch, a group of points does not."""
-    track_pushed: float = 0.0
-    """Radius (m; 0: off): once an object has been pushed, its next answer is, among the regions
-    the query returns, the one nearest where the push should have left it, when within this
-    radius (the best-scoring region otherwise)."""
     name_only_fallback: bool = True
     """With ``assume_present``: when no region of a named object beats the generic phrases
     either, push the region that scores highest for its name alone
@@ -149,7 +145,6 @@ class MapPusher:
     def reset(self, *, seed: int | None = None) -> None:
         self._targets: list[tuple[str, str]] | None = None
         self._attempts: dict[str, int] = {}
-        self._expected: dict[str, np.ndarray] = {}
         self.log: list[str] = []
 
     def _map(self, observation, info) -> None:
@@ -237,12 +232,6 @@ class MapPusher:
                 self.log.append(f"'{name}' not found: {res.reason}")
                 continue
             region = res.best
-            if c.track_pushed > 0 and name in self._expected and len(res.regions) > 1:
-                gaps = [float(np.linalg.norm(r.median[:2] - self._expected[name])) for r in res.regions]
-                k = int(np.argmin(gaps))
-                if k and gaps[k] <= c.track_pushed:
-                    self.log.append(f"'{name}': taking the region {gaps[k]:.2f} m from where the last push should have left it")
-                    region = res.regions[k]
             obj_pts = region.points_n3[region.points_n3[:, 2] > table_z + 0.005]
             if len(obj_pts) < 5:
                 obj_pts = region.points_n3
@@ -279,8 +268,7 @@ class MapPusher:
                     continue  # the finger must come down on the table and the object stay on it
                 if len(others) and np.min(np.linalg.norm(others - start, axis=1)) < c.finger_radius + 0.01:
                     continue  # the finger would come down on another object
-                # where the object should end up: the finger's travel past the approach gap
-                push = (start, ang, dist, centre[:2] + (min(dist, MAX_PUSH) - c.approach_clearance) * d)
+                push = (start, ang, dist)
                 if fallback is None:
                     fallback = push
                 if self._corridor_clear(start, ang, dist + 2 * back, extent + c.corridor_half_width, others):
@@ -299,8 +287,7 @@ class MapPusher:
         return push_action((0.0, 0.0), 0.0, 0.0, stop=True)
 
     def _push(self, name: str, side: str, push: tuple) -> np.ndarray:
-        start, ang, dist, expected = push
+        start, ang, dist = push
         self._attempts[name] = self._attempts.get(name, 0) + 1
-        self._expected[name] = np.asarray(expected, np.float64)
         self.log.append(f"push '{name}' to the {side}: start {np.round(start, 3).tolist()}, dir {math.degrees(ang):.0f} deg, {dist:.2f} m")
         return push_action(start, ang, min(dist, MAX_PUSH))
