@@ -87,11 +87,10 @@ class NavigatorConfig:
     """Fuse a frame only when the base has moved at least this far (m) or turned at least
     ``keyframe_turn_deg`` since the last fused frame (the first frame always); 0 and 0: every
     frame (as ``integrate_every`` says). Frames from nearly the same viewpoint add little to the
-    map but cost a full perception pass. The defaults (0.3 m, 40 degrees) were chosen on the 60 v2
-    calibration search episodes: 27 successes against 22 with every frame fused and 25 with 0.3 m /
-    20 degrees, at 17 ms of agent time per step against 38 and 27. The look-around turn (34
-    degrees a step) then fuses every other frame, 69 degrees apart, inside the camera's 86-degree
-    horizontal field of view."""
+    map but cost a full perception pass. With the defaults the look-around turn (34 degrees a
+    step) fuses every other frame, 69 degrees apart, inside the camera's 86-degree horizontal
+    field of view. The defaults (0.3 m, 40 degrees) were chosen on development episodes for more
+    successes at half the time a step; see docs/measurement-history.md."""
     keyframe_turn_deg: float = 40.0
     """The turn (degrees) that makes a frame a keyframe (see ``keyframe_move``)."""
     presume_after: int = 200
@@ -102,12 +101,8 @@ class NavigatorConfig:
     (:meth:`~agents.concept_map.ConceptMapper.locate_present`). A search that would run out its
     steps, or stop with nothing left to explore, ends at a guess instead. A privileged mapper
     (ground-truth perception) never presumes: a goal it does not find has not been seen yet, and
-    its search goes on. Chosen on the 88 open-world validation searches (``embedded-v2``; every
-    goal a VAL instance): 20 successes against 14 without (6 gained, none lost; 150: 20, 9 gained
-    and 3 lost; 100: 18), checked on the first 90 calibration searches (44 against 40, none lost);
-    with ``oracle-open`` the validation searches do not change (62 either way) and with ``oracle``
-    the 100 v1 calibration searches of the regression floors fall from 85 to 79 (goals found
-    between steps 220 and 249 lost to a guess)."""
+    its search goes on. Chosen on development episodes, where it gained searches of unseen
+    objects and lost none; see docs/measurement-history.md."""
 
     hold_sighting: bool = False
     """Keep heading for the goal's last sighting (its footprint when an answer last found it)

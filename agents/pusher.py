@@ -96,8 +96,8 @@ class PusherConfig:
     """An instruction names objects that are on the table: when the encoder's score floor
     rejects every region of one, push its best region anyway (it must still beat the generic
     phrases, :meth:`~agents.concept_map.ConceptMapper.locate` with ``floor=False``). False:
-    an object under the floor is not pushed. Chosen on the 80 v2 calibration episodes
-    (``embedded-v2``): map pusher 66 against 61 successes, single-frame pusher 51 against 35."""
+    an object under the floor is not pushed. Chosen on development episodes; see
+    docs/measurement-history.md."""
     identify: bool = True
     """With ``assume_present`` and a mapper whose encoder records the names it was trained on
     (:attr:`~agents.concept_map.ConceptMapper.vocabulary`; the v2 tower's train categories): a
@@ -107,22 +107,16 @@ class PusherConfig:
     above the table), instead of its best region under the floor (or the name-only region). A
     category the tower never saw scores low for its own name, but the table's other objects
     score higher still for the names they are. Without a vocabulary (the oracles, CLIP, the v1
-    tower) nothing changes. Chosen on the v2 development tables (``embedded-v2``, 320x240): on
-    the validation tables 64 of 80 successes against 51 (14 gained, 1 lost), where the first
-    answer after the scan lands on the goal for 16 of the 21 validation-category goals (8
-    before) and 54 of the 59 held-out instances (50); on the calibration tables 69 against 67 (4
-    gained, 2 lost). Answering every named object this way, found or not, gave 62 and 66: the
-    query's own region separates objects that touch, a group of points does not."""
+    tower) nothing changes. Only objects under the floor are answered this way: the query's own
+    region separates objects that touch, a group of points does not. Chosen on development
+    episodes; see docs/measurement-history.md."""
     name_only_fallback: bool = True
     """With ``assume_present``: when no region of a named object beats the generic phrases
     either, push the region that scores highest for its name alone
     (:meth:`~agents.concept_map.ConceptMapper.locate` with ``contrast=False``). A category the
     encoder never learned scores below "object" nearly everywhere, yet its own points still
-    score highest for its name: on the validation tables' crops (``python -m
-    tower_training.in_scene``) 18% of validation-category crops beat the generic phrases, while
-    the name picks its own object among the table's objects and background 51% of the time.
-    On the 80 v2 calibration episodes (trained categories only) it changes one map-pusher
-    episode (a gain) and no single-frame one. False: such an object is not pushed."""
+    score highest for its name (``cfharness develop in-scene`` measures both). False: such an
+    object is not pushed. Chosen on development episodes; see docs/measurement-history.md."""
 
 
 class MapPusher:

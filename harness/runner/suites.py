@@ -153,20 +153,15 @@ class Suite:
 
 REARRANGE_V2_ENV = {"width": 320, "height": 240, "scan_frames": 8}
 """Environment of ``rearrange-v2``: 320x240 frames (the size the v2 tower was trained at and
-``query-open`` scans at) and an 8-frame orbit scan. Chosen on development episodes
-(:mod:`harness.runner.develop`, ``map-pusher``, ``embedded-v2``): on the open-world validation
-tables 51 of 80 against 41 at 160x120 (13 gained, 3 lost), with ``oracle-open`` 73 against 74;
-on the calibration tables (trained instances only) 67 of 80 against 69 (2 gained, 4 lost); 12
-scan frames at 320x240 gave 47 of 80 on the validation tables."""
+``query-open`` scans at) and an 8-frame orbit scan, chosen on development episodes
+(:mod:`harness.runner.develop`) for the open-world tables; see docs/measurement-history.md."""
 
 SEARCH_V2_ENV = {"width": 320, "height": 240}
 """Environment of ``search-v2``: 320x240 frames. The search agents' proposals
 (:data:`~conceptfusion.perception.featurizer.SEARCH_PROPOSER`) keep regions down to 19 pixels at
 this size, so objects a base sees a few pixels wide at 160x120 are segmented on their own, and
 their score floor is derived for these views (``score_floor_search``). Chosen on development
-episodes (``map-navigator``, ``embedded-v2``): on the open-world validation searches 32 of 88
-against 20 at 160x120 (17 gained, 5 lost); on the first 90 calibration searches 54 against 44
-(the default proposals at 320x240, which stop at 77-pixel regions: validation 21, calibration 42)."""
+episodes (:mod:`harness.runner.develop`); see docs/measurement-history.md."""
 
 REARRANGE_V2_LIMIT = 64
 """Episodes ``rearrange-v2`` runs unless ``--limit`` says otherwise: the first 64 of its 160, so
