@@ -30,8 +30,8 @@ TOOLS: dict[str, DevelopTool] = {
     "query-open": DevelopTool("harness.maps.query_open_develop",
                               "query-open on calibration tables: what the score floor costs, per query kind"),
     "spatial": DevelopTool("harness.maps.spatial_develop", "spatial-question settings on calibration scenes"),
-    "floors": DevelopTool("harness.runner.floors",
-                          "calibrate the regression suites' success floors (--calibrate) or check them (--check)"),
+    "bounds": DevelopTool("harness.runner.bounds",
+                          "calibrate the regression suites' success bounds (--calibrate) or check them (--check)"),
     "headline": DevelopTool("harness.report.headline", "measure the headline figures once on the sealed test set"),
     "train": DevelopTool("tower_training.train", "train, evaluate and export the embedded image tower (--world v2: the v2 tower)"),
     "fit": DevelopTool("tower_training.fit", "fit the v2 image tower on a training bundle, on any torch device"),
@@ -59,7 +59,7 @@ def add_develop_command(sub) -> None:
         description="Run a development tool: cfharness develop TOOL ARGS... passes ARGS to the tool; with no TOOL, "
         "list the tools. Settings are chosen on calibration and validation episodes, never on the evaluation ones.",
         epilog="examples:\n  cfharness develop\n  cfharness develop episodes --suite search-v2 --agent map-navigator "
-        "--out runs/develop/nav\n  cfharness develop floors --check\n  cfharness develop room-floor --help",
+        "--out runs/develop/nav\n  cfharness develop bounds --check\n  cfharness develop room-floor --help",
         formatter_class=argparse.RawDescriptionHelpFormatter,
     )
     p.add_argument("tool", nargs="?", metavar="TOOL", help="the tool to run: " + ", ".join(TOOLS))
