@@ -77,15 +77,15 @@ def _pusher(mapper: ConceptMapper, use_scan: bool, **settings):
 
 
 def _map_pusher(encoder: str = "embedded", proposer: str = "rgbd", scan: bool = True, assume_present: bool = True,
-                name_only_fallback: bool = True, identify: bool = True, track_pushed: float = 0.0):
+                name_only_fallback: bool = True, identify: bool = True):
     return _pusher(make_mapper(encoder, proposer), scan, assume_present=assume_present, name_only_fallback=name_only_fallback,
-                   identify=identify, track_pushed=track_pushed)
+                   identify=identify)
 
 
 def _twin_pusher(encoder: str = "embedded", proposer: str = "rgbd", assume_present: bool = True, name_only_fallback: bool = True,
-                 identify: bool = True, track_pushed: float = 0.0):
+                 identify: bool = True):
     return _pusher(make_mapper(encoder, proposer, semantic_views=PUSHER_TWIN_VIEWS), True, assume_present=assume_present,
-                   name_only_fallback=name_only_fallback, identify=identify, track_pushed=track_pushed)
+                   name_only_fallback=name_only_fallback, identify=identify)
 
 
 def _frame_pusher(encoder: str = "embedded", proposer: str = "rgbd", assume_present: bool = True, name_only_fallback: bool = True,
@@ -103,19 +103,16 @@ def _navigator(encoder: str, proposer: str, seed: int, semantic_views: int, **se
 
 def _map_navigator(encoder: str = "embedded", proposer: str = SEARCH_PROPOSER, seed: int = 0, integrate_every: int = 1,
                    keyframe_move: float = 0.3, keyframe_turn_deg: float = 40.0, goal_tolerance: float = 0.05,
-                   stuck_steps: int = 0, explore_range: float = 0.0, recheck_faded: bool = False, presume_after: int = 200):
+                   presume_after: int = 200):
     return _navigator(encoder, proposer, seed, 0, integrate_every=integrate_every, keyframe_move=keyframe_move,
-                      keyframe_turn_deg=keyframe_turn_deg, goal_tolerance=goal_tolerance, stuck_steps=stuck_steps,
-                      explore_range=explore_range, recheck_faded=recheck_faded, presume_after=presume_after)
+                      keyframe_turn_deg=keyframe_turn_deg, goal_tolerance=goal_tolerance, presume_after=presume_after)
 
 
 def _twin_navigator(encoder: str = "embedded", proposer: str = SEARCH_PROPOSER, seed: int = 0, integrate_every: int = 1,
                     keyframe_move: float = 0.3, keyframe_turn_deg: float = 40.0, goal_tolerance: float = 0.05,
-                    stuck_steps: int = 0, explore_range: float = 0.0, recheck_faded: bool = False, presume_after: int = 200,
-                    hold_sighting: bool = True, look_again: bool = True):
+                    presume_after: int = 200, hold_sighting: bool = True, look_again: bool = True):
     return _navigator(encoder, proposer, seed, 1, integrate_every=integrate_every, keyframe_move=keyframe_move,
-                      keyframe_turn_deg=keyframe_turn_deg, goal_tolerance=goal_tolerance, stuck_steps=stuck_steps,
-                      explore_range=explore_range, recheck_faded=recheck_faded, presume_after=presume_after,
+                      keyframe_turn_deg=keyframe_turn_deg, goal_tolerance=goal_tolerance, presume_after=presume_after,
                       hold_sighting=hold_sighting, look_again=look_again)
 
 
@@ -149,13 +146,13 @@ _PRESENCE = {"assume_present": Option(bool, True), "name_only_fallback": Option(
 register_agent(AgentSpec(
     "map-pusher", _map_pusher, "tabletop_rearrange",
     "ConceptFusion map from an orbit scan; pushes each named object's median across the line; re-checks and retries",
-    {**_PERCEPTION, "scan": Option(bool, True), **_PRESENCE, "track_pushed": Option.at_least(float, 0.0, 0.0)}, uses_map=True,
+    {**_PERCEPTION, "scan": Option(bool, True), **_PRESENCE}, uses_map=True,
 ))
 register_agent(AgentSpec(
     "twin-pusher", _twin_pusher, "tabletop_rearrange",
     "matched map-free twin of map-pusher: the same scan and fixed frames, each perceived alone (the best single frame "
     "answers), the same push planner and rules; geometry fused, concept vectors not",
-    {**_PERCEPTION, **_PRESENCE, "track_pushed": Option.at_least(float, 0.0, 0.0)}, twin_of="map-pusher",
+    {**_PERCEPTION, **_PRESENCE}, twin_of="map-pusher",
 ))
 register_agent(AgentSpec(
     "frame-pusher", _frame_pusher, "tabletop_rearrange",
@@ -177,9 +174,7 @@ register_agent(AgentSpec(
 _NAVIGATOR_OPTIONS = {
     **_SEARCH_PERCEPTION, "seed": _SEED, "integrate_every": Option.at_least(int, 1, 1),
     "keyframe_move": Option.at_least(float, 0.3, 0.0), "keyframe_turn_deg": Option.at_least(float, 40.0, 0.0),
-    "goal_tolerance": Option.at_least(float, 0.05, 0.01), "stuck_steps": Option.at_least(int, 0, 0),
-    "explore_range": Option.at_least(float, 0.0, 0.0), "recheck_faded": Option(bool, False),
-    "presume_after": Option.at_least(int, 200, 0)}
+    "goal_tolerance": Option.at_least(float, 0.05, 0.01), "presume_after": Option.at_least(int, 200, 0)}
 """The options of the map navigator and its twin (:class:`~agents.navigator.NavigatorConfig`)."""
 
 register_agent(AgentSpec(

@@ -87,39 +87,12 @@ class NavigatorConfig:
     """Fuse a frame only when the base has moved at least this far (m) or turned at least
     ``keyframe_turn_deg`` since the last fused frame (the first frame always); 0 and 0: every
     frame (as ``integrate_every`` says). Frames from nearly the same viewpoint add little to the
-    map but cost a full perception pass. The defaults (0.3 m, 40 degrees) were chosen on the 60 v2
-    calibration search episodes: 27 successes against 22 with every frame fused and 25 with 0.3 m /
-    20 degrees, at 17 ms of agent time per step against 38 and 27. The look-around turn (34
-    degrees a step) then fuses every other frame, 69 degrees apart, inside the camera's 86-degree
-    horizontal field of view."""
+    map but cost a full perception pass. With the defaults the look-around turn (34 degrees a
+    step) fuses every other frame, 69 degrees apart, inside the camera's 86-degree horizontal
+    field of view. The defaults (0.3 m, 40 degrees) were chosen on development episodes for more
+    successes at half the time a step; see docs/measurement-history.md."""
     keyframe_turn_deg: float = 40.0
     """The turn (degrees) that makes a frame a keyframe (see ``keyframe_move``)."""
-    stuck_steps: int = 0
-    """Bump rule (0: off): when the base has been commanded forward for this many consecutive
-    steps while following a path and its odometry moved less than ``stuck_move``, something the
-    map does not show (too low for the camera, seen too close) blocks it: the navigator marks a
-    virtual obstacle just ahead of the base, backs off for ``backoff_steps`` steps and replans.
-    Off by default until it is chosen on calibration episodes for every suite it would change."""
-    stuck_move: float = 0.02
-    """Odometry motion (m) over ``stuck_steps`` steps under which the base counts as stuck."""
-    backoff_steps: int = 2
-    """Steps of reversing at 0.2 m/s after a bump."""
-    explore_range: float = 0.0
-    """Close-range exploration (0: off): space counts as explored for frontiers only where a
-    fused frame saw it from at most this depth (m). A room seen through a doorway from 5 m away
-    is mapped, but its objects cover a few pixels there, too few for a perceived encoder to
-    recognise; with a range, frontiers stay at the edge of what was seen up close, so the base
-    goes and looks. The occupancy grid and the planner are unchanged (obstacles seen from afar
-    still block paths)."""
-    recheck_faded: bool = False
-    """When the goal's region drops under the score floor just as the base arrives at it, look
-    around once from there before deciding (False: stop there, trusting the earlier sighting). If
-    the close look finds it within reach again, stop; otherwise the sighting counts as a false
-    detection: regions within ``reject_radius`` of it are ignored from then on and the search
-    goes on."""
-    reject_radius: float = 0.5
-    """Radius (m) around a rejected sighting's centre inside which regions are ignored
-    (``recheck_faded``)."""
     presume_after: int = 200
     """From this step on (0: never), and once no frontier is left, a goal the score floor rejects
     everywhere is presumed present, as an instruction's objects are for the pushers: the search
@@ -128,12 +101,8 @@ class NavigatorConfig:
     (:meth:`~agents.concept_map.ConceptMapper.locate_present`). A search that would run out its
     steps, or stop with nothing left to explore, ends at a guess instead. A privileged mapper
     (ground-truth perception) never presumes: a goal it does not find has not been seen yet, and
-    its search goes on. Chosen on the 88 open-world validation searches (``embedded-v2``; every
-    goal a VAL instance): 20 successes against 14 without (6 gained, none lost; 150: 20, 9 gained
-    and 3 lost; 100: 18), checked on the first 90 calibration searches (44 against 40, none lost);
-    with ``oracle-open`` the validation searches do not change (62 either way) and with ``oracle``
-    the 100 v1 calibration searches of the regression floors fall from 85 to 79 (goals found
-    between steps 220 and 249 lost to a guess)."""
+    its search goes on. Chosen on development episodes, where it gained searches of unseen
+    objects and lost none; see docs/measurement-history.md."""
 
     hold_sighting: bool = False
     """Keep heading for the goal's last sighting (its footprint when an answer last found it)
@@ -152,30 +121,24 @@ class NavigatorConfig:
         if not (isinstance(self.goal_tolerance, (int, float)) and not isinstance(self.goal_tolerance, bool)
                 and 0 < self.goal_tolerance < math.inf):
             raise ValueError(f"goal_tolerance: expected a finite number > 0, got {self.goal_tolerance!r}")
-        for name in ("stuck_steps", "backoff_steps", "presume_after"):
-            value = getattr(self, name)
-            if isinstance(value, bool) or not isinstance(value, int) or value < 0:
-                raise ValueError(f"{name}: expected an integer >= 0, got {value!r}")
-        for name in ("recheck_faded", "hold_sighting", "look_again"):
+        value = self.presume_after
+        if isinstance(value, bool) or not isinstance(value, int) or value < 0:
+            raise ValueError(f"presume_after: expected an integer >= 0, got {value!r}")
+        for name in ("hold_sighting", "look_again"):
             if not isinstance(getattr(self, name), bool):
                 raise ValueError(f"{name}: expected a bool, got {getattr(self, name)!r}")
-        if not (isinstance(self.reject_radius, (int, float)) and not isinstance(self.reject_radius, bool)
-                and 0 < self.reject_radius < math.inf):
-            raise ValueError(f"reject_radius: expected a finite number > 0, got {self.reject_radius!r}")
-        for name in ("keyframe_move", "keyframe_turn_deg", "stuck_move", "explore_range"):
+        for name in ("keyframe_move", "keyframe_turn_deg"):
             value = getattr(self, name)
             if not (isinstance(value, (int, float)) and not isinstance(value, bool) and 0 <= value < math.inf):
                 raise ValueError(f"{name}: expected a finite number >= 0, got {value!r}")
 
 
 _CLOSE_STRIDE = 2
-"""Pixel stride of the depth samples that mark space seen up close (``explore_range``)."""
+"""Pixel stride of the depth samples that mark space seen since a later goal was revealed
+(``look_again``)."""
 
 _CLOSE_FILL = 2
 """Closing iterations that fill the gaps between those samples on the grid."""
-
-_BUMP_RADIUS = 0.12
-"""Radius (m) of the virtual obstacle the bump rule marks ahead of a stuck base."""
 
 
 class MapNavigator:
@@ -211,16 +174,6 @@ class MapNavigator:
         self._seen: np.ndarray | None = None
         """Footprint (m, 2) of the goal when the map last found it."""
         self._last_fused: np.ndarray | None = None
-        self._pushing: list[np.ndarray] = []
-        """Poses of the consecutive steps commanded forward while following (the bump rule)."""
-        self._bumps: list[np.ndarray] = []
-        self._last_linear = 0.0
-        """World (x, y) of virtual obstacles the base ran into."""
-        self._backoff = 0
-        self._rechecking = False
-        """A faded sighting is being checked by a look-around (``recheck_faded``)."""
-        self._rejected: list[np.ndarray] = []
-        """World (x, y) centres of sightings a close look did not confirm."""
         self._presumed: str | None = None
         """How the goal was last presumed present (``presume_after``), None before."""
         self._exhausted = False
@@ -230,9 +183,9 @@ class MapNavigator:
         """The step at which the current goal was revealed (``presume_after`` counts from it)."""
         """Whether this search may presume its goal present (``presume_after``, perceived maps only)."""
         self._close_keys = np.zeros(0, np.int64)
-        """Space seen within ``explore_range`` (or, with ``look_again``, seen since the current
-        goal of a chain was revealed): world (x, y) on a lattice of half the grid's cell side, as
-        ``ix * 2**32 + iy`` keys, sorted and unique."""
+        """Space seen since the current goal of a chain was revealed (``look_again``): world
+        (x, y) on a lattice of half the grid's cell side, as ``ix * 2**32 + iy`` keys, sorted and
+        unique."""
         self._looking_again = False
         """A later goal of a chain is being searched with ``look_again``: frontiers count only the
         space seen since it was revealed."""
@@ -253,13 +206,6 @@ class MapNavigator:
         pts = self.mapper.map.points
         grid = build_occupancy_grid(pts, self.config.grid)
         c = self.config
-        if self._bumps:
-            cells = np.argwhere(np.ones(grid.shape, bool))
-            centres = grid.cell_to_world(cells).reshape(*grid.shape, 2)
-            hit = np.zeros(grid.shape, bool)
-            for b in self._bumps:
-                hit |= np.linalg.norm(centres - b, axis=-1) <= _BUMP_RADIUS
-            grid = dataclasses.replace(grid, occupied_hw=grid.occupied_hw | hit)
         inflated = grid.inflate(c.robot_radius + c.clearance + grid.resolution / 2)
         if position_xy is None or not inflated.is_blocked_xy(np.asarray(position_xy)[None])[0]:
             return grid, inflated
@@ -271,21 +217,20 @@ class MapNavigator:
         return grid, inflated
 
     def _see_close(self, observation) -> None:
-        """Add the space this frame shows within ``explore_range`` (the map's depth range when
-        looking again) to the close-range set."""
-        c = self.config
-        depth = c.explore_range if c.explore_range > 0 else self.mapper.config.max_depth
+        """Add the space this frame shows within the map's depth range to the set seen since
+        the current goal was revealed (``look_again``)."""
         xy = world_points(observation["depth"], observation["K"], observation["cam_to_world"],
-                          max_depth=depth, stride=_CLOSE_STRIDE)[:, :2]
-        step = c.grid.resolution / 2
+                          max_depth=self.mapper.config.max_depth, stride=_CLOSE_STRIDE)[:, :2]
+        step = self.config.grid.resolution / 2
         ij = np.floor(xy / step).astype(np.int64)
         keys = (ij[:, 0] << 32) + (ij[:, 1] & 0xFFFFFFFF)
         self._close_keys = np.union1d(self._close_keys, keys)
 
     def _frontier_grid(self, grid):
-        """The grid frontiers are found on: ``grid`` itself, or with ``explore_range`` its
-        observed cells narrowed to those seen up close (occupied cells stay observed)."""
-        if self.config.explore_range <= 0 and not self._looking_again:
+        """The grid frontiers are found on: ``grid`` itself, or while looking again
+        (``look_again``) its observed cells narrowed to those seen since the current goal was
+        revealed (occupied cells stay observed)."""
+        if not self._looking_again:
             return grid
         close = np.zeros(grid.shape, bool)
         if len(self._close_keys):
@@ -301,9 +246,9 @@ class MapNavigator:
         return dataclasses.replace(grid, known_hw=(grid.known_hw & close) | grid.occupied_hw)
 
     def _locate(self):
-        """The map's answer for the goal, without regions centred within ``reject_radius`` of a
-        rejected sighting (``found`` False when none is left). While exploring (the goal reads
-        :data:`~conceptfusion.tasks.EXPLORE_GOAL`) nothing is asked: nothing is found."""
+        """The map's answer for the goal (presumed present once ``presume_after`` applies).
+        While exploring (the goal reads :data:`~conceptfusion.tasks.EXPLORE_GOAL`) nothing is
+        asked: nothing is found."""
         c = self.config
         if self._goal == EXPLORE_GOAL:
             return QueryResult(False, [], np.zeros(0, np.float32), np.zeros(0, np.float32), np.zeros(0, np.float32),
@@ -316,16 +261,7 @@ class MapNavigator:
                 self._note(f"'{self._goal}' presumed present ({presumed}): {found.extras['passed_over'][0]}")
         else:
             found = self.mapper.locate(self._goal)
-        if not found.found or not self._rejected:
-            return found
-        keep = [r for r in found.regions
-                if min(float(np.hypot(*(np.median(r.points_n3[:, :2], axis=0) - x))) for x in self._rejected)
-                > self.config.reject_radius]
-        if len(keep) == len(found.regions):
-            return found
-        if keep:
-            return dataclasses.replace(found, regions=keep)
-        return dataclasses.replace(found, found=False, regions=[], reason="only regions at rejected sightings")
+        return found
 
     def _within_reach(self, footprint: np.ndarray, start: np.ndarray) -> float | None:
         """Distance (m) from ``start`` to the footprint when close enough to stop, else None."""
@@ -340,23 +276,11 @@ class MapNavigator:
         goal_text = self._goal
         found = self._locate()
         start = pose[:2]
-        if self._rechecking:
-            self._rechecking = False
-            if not (found.found and self._within_reach(found.best.points_n3[:, :2], start) is not None):
-                spot = np.median(self._seen, axis=0)
-                self._rejected.append(spot)
-                self._seen = None
-                self._note(f"a close look does not confirm '{goal_text}' at {np.round(spot, 2).tolist()}: searching on")
-                found = self._locate()
         if not found.found and arrived and self._seen is not None:
             # Frames from close by can drop the goal's score under the floor just as the base
-            # arrives: it was seen here, so stop rather than wander off (or look again first).
+            # arrives: it was seen here, so stop rather than wander off.
             near = self._within_reach(self._seen, start)
             if near is not None:
-                if self.config.recheck_faded:
-                    self._note(f"'{goal_text}' no longer stands out {near:.2f} m from where it was seen: looking again")
-                    self._rechecking, self._phase, self._turned = True, "look", 0.0
-                    return search_action(0.0, self.config.look_angular)
                 self._note(f"'{goal_text}' no longer stands out, but it was seen {near:.2f} m from here: stop")
                 return search_action(stop=True)
         grid, inflated = self._grids(start)
@@ -425,27 +349,6 @@ class MapNavigator:
             return search_action(0.0, self.config.look_angular)
         return search_action(cmd.linear, cmd.angular)
 
-    def _bumped(self, pose: np.ndarray) -> bool:
-        """The bump rule (``config.stuck_steps``): True when the base is stuck (and then a virtual
-        obstacle is marked ahead of it and the back-off starts)."""
-        c = self.config
-        if c.stuck_steps <= 0:
-            return False
-        if self._last_linear < 0.1:  # turning on the spot or slowing down: no push
-            self._pushing = [pose.copy()]
-            return False
-        self._pushing.append(pose.copy())
-        if len(self._pushing) <= c.stuck_steps:
-            return False
-        self._pushing = self._pushing[-(c.stuck_steps + 1):]
-        if float(np.hypot(*(self._pushing[-1][:2] - self._pushing[0][:2]))) >= c.stuck_move:
-            return False
-        ahead = pose[:2] + (c.robot_radius + _BUMP_RADIUS) * np.array([math.cos(pose[2]), math.sin(pose[2])])
-        self._bumps.append(ahead)
-        self._pushing, self._backoff = [], max(1, c.backoff_steps)
-        self._note(f"stuck at {np.round(pose[:2], 2).tolist()}: obstacle marked at {np.round(ahead, 2).tolist()}, backing off")
-        return True
-
     def _fuse_now(self, pose: np.ndarray) -> bool:
         """Whether this step's frame goes into the map (``integrate_every``, then the keyframe rule)."""
         c = self.config
@@ -463,8 +366,8 @@ class MapNavigator:
         self._note(f"next goal '{goal}' (after '{self._goal}')")
         self._goal, self._goal_start = goal, self._steps
         self._seen = self._closest_approach = self._presumed = None
-        self._rejected, self._exhausted, self._rechecking, self._failures = [], False, False, 0
-        self._path, self._to_goal, self._phase, self._backoff = None, False, "plan", 0
+        self._exhausted, self._failures = False, 0
+        self._path, self._to_goal, self._phase = None, False, "plan"
         if self.config.look_again:  # nothing counts as explored: look around from here first
             self._looking_again, self._close_keys, self._visited = True, np.zeros(0, np.int64), []
             self._phase, self._turned, self._last_fused = "look", 0.0, None
@@ -472,13 +375,6 @@ class MapNavigator:
     # -- protocol --------------------------------------------------------------------------
 
     def act(self, observation, info: dict | None = None) -> np.ndarray:
-        action = self._act(observation, info)
-        self._last_linear = float(action[0])
-        if self._phase != "follow":
-            self._pushing = []
-        return action
-
-    def _act(self, observation, info: dict | None) -> np.ndarray:
         pose = np.asarray(observation["base_pose"], np.float64)
         if not self._started:
             self._goal = str(observation["goal"])
@@ -489,7 +385,7 @@ class MapNavigator:
         if self._fuse_now(pose):
             self.mapper.integrate(observation, segmentation=(info or {}).get("segmentation") if self.privileged else None)
             self._last_fused = pose.copy()
-            if self.config.explore_range > 0 or self._looking_again:
+            if self._looking_again:
                 self._see_close(observation)
         self._steps += 1
         if self._last_yaw is not None:
@@ -499,14 +395,7 @@ class MapNavigator:
             if self._turned < 2 * math.pi - 0.3:
                 return search_action(0.0, self.config.look_angular)
             return self._plan(pose)
-        if self._backoff > 0:
-            self._backoff -= 1
-            if self._backoff > 0:
-                return search_action(-0.2, 0.0)
-            return self._plan(pose)
         if self._phase == "follow":
-            if self._bumped(pose):
-                return search_action(-0.2, 0.0)
             if self._steps % self.config.recheck_every == 0:
                 if not self._to_goal and self._locate().found:
                     self._note(f"'{self._goal}' appeared: replan")

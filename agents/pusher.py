@@ -96,8 +96,8 @@ class PusherConfig:
     """An instruction names objects that are on the table: when the encoder's score floor
     rejects every region of one, push its best region anyway (it must still beat the generic
     phrases, :meth:`~agents.concept_map.ConceptMapper.locate` with ``floor=False``). False:
-    an object under the floor is not pushed. Chosen on the 80 v2 calibration episodes
-    (``embedded-v2``): map pusher 66 against 61 successes, single-frame pusher 51 against 35."""
+    an object under the floor is not pushed. Chosen on development episodes; see
+    docs/measurement-history.md."""
     identify: bool = True
     """With ``assume_present`` and a mapper whose encoder records the names it was trained on
     (:attr:`~agents.concept_map.ConceptMapper.vocabulary`; the v2 tower's train categories): a
@@ -107,26 +107,16 @@ class PusherConfig:
     above the table), instead of its best region under the floor (or the name-only region). A
     category the tower never saw scores low for its own name, but the table's other objects
     score higher still for the names they are. Without a vocabulary (the oracles, CLIP, the v1
-    tower) nothing changes. Chosen on the v2 development tables (``embedded-v2``, 320x240): on
-    the validation tables 64 of 80 successes against 51 (14 gained, 1 lost), where the first
-    answer after the scan lands on the goal for 16 of the 21 validation-category goals (8
-    before) and 54 of the 59 held-out instances (50); on the calibration tables 69 against 67 (4
-    gained, 2 lost). Answering every named object this way, found or not, gave 62 and 66: the
-    query's own region separates objects that touch, a group of points does not."""
-    track_pushed: float = 0.0
-    """Radius (m; 0: off): once an object has been pushed, its next answer is, among the regions
-    the query returns, the one nearest where the push should have left it, when within this
-    radius (the best-scoring region otherwise)."""
+    tower) nothing changes. Only objects under the floor are answered this way: the query's own
+    region separates objects that touch, a group of points does not. Chosen on development
+    episodes; see docs/measurement-history.md."""
     name_only_fallback: bool = True
     """With ``assume_present``: when no region of a named object beats the generic phrases
     either, push the region that scores highest for its name alone
     (:meth:`~agents.concept_map.ConceptMapper.locate` with ``contrast=False``). A category the
     encoder never learned scores below "object" nearly everywhere, yet its own points still
-    score highest for its name: on the validation tables' crops (``python -m
-    tower_training.in_scene``) 18% of validation-category crops beat the generic phrases, while
-    the name picks its own object among the table's objects and background 51% of the time.
-    On the 80 v2 calibration episodes (trained categories only) it changes one map-pusher
-    episode (a gain) and no single-frame one. False: such an object is not pushed."""
+    score highest for its name (``cfharness develop in-scene`` measures both). False: such an
+    object is not pushed. Chosen on development episodes; see docs/measurement-history.md."""
 
 
 class MapPusher:
@@ -149,7 +139,6 @@ class MapPusher:
     def reset(self, *, seed: int | None = None) -> None:
         self._targets: list[tuple[str, str]] | None = None
         self._attempts: dict[str, int] = {}
-        self._expected: dict[str, np.ndarray] = {}
         self.log: list[str] = []
 
     def _map(self, observation, info) -> None:
@@ -237,12 +226,6 @@ class MapPusher:
                 self.log.append(f"'{name}' not found: {res.reason}")
                 continue
             region = res.best
-            if c.track_pushed > 0 and name in self._expected and len(res.regions) > 1:
-                gaps = [float(np.linalg.norm(r.median[:2] - self._expected[name])) for r in res.regions]
-                k = int(np.argmin(gaps))
-                if k and gaps[k] <= c.track_pushed:
-                    self.log.append(f"'{name}': taking the region {gaps[k]:.2f} m from where the last push should have left it")
-                    region = res.regions[k]
             obj_pts = region.points_n3[region.points_n3[:, 2] > table_z + 0.005]
             if len(obj_pts) < 5:
                 obj_pts = region.points_n3
@@ -279,8 +262,7 @@ class MapPusher:
                     continue  # the finger must come down on the table and the object stay on it
                 if len(others) and np.min(np.linalg.norm(others - start, axis=1)) < c.finger_radius + 0.01:
                     continue  # the finger would come down on another object
-                # where the object should end up: the finger's travel past the approach gap
-                push = (start, ang, dist, centre[:2] + (min(dist, MAX_PUSH) - c.approach_clearance) * d)
+                push = (start, ang, dist)
                 if fallback is None:
                     fallback = push
                 if self._corridor_clear(start, ang, dist + 2 * back, extent + c.corridor_half_width, others):
@@ -299,8 +281,7 @@ class MapPusher:
         return push_action((0.0, 0.0), 0.0, 0.0, stop=True)
 
     def _push(self, name: str, side: str, push: tuple) -> np.ndarray:
-        start, ang, dist, expected = push
+        start, ang, dist = push
         self._attempts[name] = self._attempts.get(name, 0) + 1
-        self._expected[name] = np.asarray(expected, np.float64)
         self.log.append(f"push '{name}' to the {side}: start {np.round(start, 3).tolist()}, dir {math.degrees(ang):.0f} deg, {dist:.2f} m")
         return push_action(start, ang, min(dist, MAX_PUSH))

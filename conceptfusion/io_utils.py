@@ -13,7 +13,7 @@ kind                      files                                       limit
 :data:`MAX_EPISODES_BYTES` episode files (``*.jsonl``)                 256 MiB
 :data:`MAX_RESULTS_BYTES` ``results.jsonl`` of a run                   4 GiB
 :data:`MAX_DOCUMENT_BYTES` small JSON documents: ``run.json``, splits,  64 MiB
-                          the sealed manifest, floors
+                          the sealed manifest, bounds
 ========================  ==========================================  ==========
 """
 
@@ -39,7 +39,7 @@ MAX_EPISODES_BYTES = 256 * 2**20
 MAX_RESULTS_BYTES = 4 * 2**30
 """Largest ``results.jsonl`` read (a record is about 1 KB: some four million episodes)."""
 MAX_DOCUMENT_BYTES = 64 * 2**20
-"""Largest small JSON document read: run settings, split files, the sealed manifest, floors."""
+"""Largest small JSON document read: run settings, split files, the sealed manifest, the regression bounds."""
 
 _KINDS = ((stat.S_ISDIR, "folder"), (stat.S_ISFIFO, "FIFO (named pipe)"), (stat.S_ISCHR, "character device"),
           (stat.S_ISBLK, "block device"), (stat.S_ISSOCK, "socket"))

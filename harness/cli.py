@@ -208,6 +208,9 @@ def build_parser() -> argparse.ArgumentParser:
     from harness.commands import add_eval_commands
 
     add_eval_commands(sub)
+    from harness.develop_command import add_develop_command
+
+    add_develop_command(sub)
     parser.set_defaults(_commands=sub.choices)
     return parser
 

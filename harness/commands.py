@@ -183,7 +183,7 @@ def cmd_run(args: argparse.Namespace) -> int:
         with _sigterm_stops_the_run():
             try:
                 config = _run_config(args)
-                floor_as = _parse_floor_as(args.floor_as, config)
+                bound_as = _parse_bound_as(args.bound_as, config)
                 plan = _plan(config, args.out, args.resume)
             except RunFolderFullError:
                 raise
@@ -191,7 +191,7 @@ def cmd_run(args: argparse.Namespace) -> int:
                 print(f"cfharness run: {exc}", file=sys.stderr)
                 return 2
             try:
-                return _execute(args, config, plan, floor_as)
+                return _execute(args, config, plan, bound_as)
             finally:
                 plan.close()
     except KeyboardInterrupt as exc:
@@ -211,7 +211,7 @@ def _plan(config, out: str, resume: bool):
         raise ValueError(str(exc)) from exc
 
 
-def _execute(args: argparse.Namespace, config, plan, floor_as: dict[str, str]) -> int:
+def _execute(args: argparse.Namespace, config, plan, bound_as: dict[str, str]) -> int:
     """Run a planned ``cfharness run``: the jobs, the summary, the report and the regression bounds."""
     from harness.runner.backends import RayUnavailableError
 
@@ -223,7 +223,7 @@ def _execute(args: argparse.Namespace, config, plan, floor_as: dict[str, str]) -
     if args.fail_fast:
         from harness.runner.results import load_results
 
-        settled = fail_fast_stop(plan.jobs, suites, agents=config.agents, floor_as=floor_as,
+        settled = fail_fast_stop(plan.jobs, suites, agents=config.agents, bound_as=bound_as,
                                  done=load_results(plan.results))
 
         def settle(rec: dict) -> bool:
@@ -252,12 +252,12 @@ def _execute(args: argparse.Namespace, config, plan, floor_as: dict[str, str]) -
     if stopped:
         print(f"--fail-fast: stopped after {stopped[0]['suite']} {stopped[0]['agent']} {stopped[0]['episode_id']} settled a "
               f"regression; --resume runs the rest", file=sys.stderr)
-    return _check_floors(records, suites, agents=config.agents, floor_as=floor_as, limited=config.limit is not None,
+    return _check_bounds(records, suites, agents=config.agents, bound_as=bound_as, limited=config.limit is not None,
                          stopped_early=bool(stopped))
 
 
-def _parse_floor_as(items: list[str] | None, config) -> dict[str, str]:
-    """``--floor-as AGENT=BUILTIN`` -> {agent: built-in agent}; ``ValueError`` for a bad item."""
+def _parse_bound_as(items: list[str] | None, config) -> dict[str, str]:
+    """``--bound-as AGENT=BUILTIN`` -> {agent: built-in agent}; ``ValueError`` for a bad item."""
     from agents.registry import AGENTS
     from conceptfusion.names import unknown_name_error
 
@@ -265,9 +265,9 @@ def _parse_floor_as(items: list[str] | None, config) -> dict[str, str]:
     for item in items or []:
         agent, sep, builtin = (x.strip() for x in item.partition("="))
         if not sep or not agent or not builtin:
-            raise ValueError(f"--floor-as: expected AGENT=BUILTIN (e.g. mypkg.agents:MyPusher=map-pusher), got {item!r}")
+            raise ValueError(f"--bound-as: expected AGENT=BUILTIN (e.g. mypkg.agents:MyPusher=map-pusher), got {item!r}")
         if agent not in (config.agents or ()):
-            raise ValueError(f"--floor-as {item}: {agent!r} is not an --agent of this run "
+            raise ValueError(f"--bound-as {item}: {agent!r} is not an --agent of this run "
                              f"(agents: {', '.join(config.agents or ()) or 'the suites defaults'})")
         if builtin not in AGENTS:
             raise unknown_name_error("built-in agent", builtin, AGENTS)
@@ -275,7 +275,7 @@ def _parse_floor_as(items: list[str] | None, config) -> dict[str, str]:
     return out
 
 
-def _held_bounds(suites: tuple[str, ...], agents: tuple[str, ...] | None, floor_as: dict[str, str]) -> tuple[list[tuple], list[str]]:
+def _held_bounds(suites: tuple[str, ...], agents: tuple[str, ...] | None, bound_as: dict[str, str]) -> tuple[list[tuple], list[str]]:
     """The bounds a run is held to, ``(suite, agent, kind, value, pinned, held)`` each (``held``:
     how the report names it), and the problems found before any record is read (a regression
     suite with no bounds, an agent borrowing a bound its reference lacks)."""
@@ -284,19 +284,20 @@ def _held_bounds(suites: tuple[str, ...], agents: tuple[str, ...] | None, floor_
     held_bounds, bad = [], []
     for name in suites:
         suite = get_suite(name)
-        bounds = {**{a: ("floor", v) for a, v in suite.floors.items()}, **{a: ("ceiling", v) for a, v in suite.ceilings.items()}}
+        bounds = {**{a: ("lower", v) for a, v in suite.lower_bounds.items()},
+                  **{a: ("upper", v) for a, v in suite.upper_bounds.items()}}
         if suite.calibration_file is not None and not bounds:
-            bad.append(f"{name}: no calibrated floors (run python -m harness.runner.floors --calibrate)")
+            bad.append(f"{name}: no calibrated bounds (run cfharness develop bounds --calibrate)")
             continue
-        to_check = list(bounds) if agents is None else [a for a in agents if a in bounds or a in floor_as]
+        to_check = list(bounds) if agents is None else [a for a in agents if a in bounds or a in bound_as]
         for agent in to_check:
-            ref = floor_as.get(agent, agent)
+            ref = bound_as.get(agent, agent)
             if ref not in bounds:
                 bad.append(f"{name}: {agent} is held to the bound of {ref}, which has none in this suite "
                            f"(agents with bounds: {', '.join(bounds)})")
                 continue
             kind, value = bounds[ref]
-            held = f"its {kind} {value:.0%}" + (f" (that of {ref})" if ref != agent else "")
+            held = f"its {kind} bound {value:.0%}" + (f" (that of {ref})" if ref != agent else "")
             held_bounds.append((name, agent, kind, value, suite.agent_limits.get(ref, suite.limit), held))
     return held_bounds, bad
 
@@ -304,23 +305,23 @@ def _held_bounds(suites: tuple[str, ...], agents: tuple[str, ...] | None, floor_
 def _broken(kind: str, value: float, k: int, n: int, planned: int | None = None) -> bool:
     """Whether ``k`` successes in ``n`` episodes break the bound for certain. With ``planned``
     (the episodes the run would have run, >= n), the ones not run count at their best: as
-    successes against a floor, as failures against a ceiling."""
+    successes against a lower bound, as failures against an upper bound."""
     total = max(n, planned or n)
-    if kind == "floor":
+    if kind == "lower":
         return k + (total - n) < value * total - 1e-9
     return k > value * total + 1e-9
 
 
 def fail_fast_stop(jobs, suites: tuple[str, ...], *, agents: tuple[str, ...] | None = None,
-                   floor_as: dict[str, str] | None = None, done: list[dict] | None = None):
+                   bound_as: dict[str, str] | None = None, done: list[dict] | None = None):
     """A ``stop`` callback for :meth:`~harness.runner.run.RunPlan.execute` (``--fail-fast``): True
     once a record settles a regression: an episode of a bounded agent crashed, or its successes
-    so far cannot reach its floor (or already pass its ceiling) whatever its remaining episodes
+    so far cannot reach its lower bound (or already pass its upper bound) whatever its remaining episodes
     of ``jobs`` (every job of the run) do. ``done``: the records a resumed run already holds,
     counted first."""
     from harness.runner.results import latest_records
 
-    bounds, _ = _held_bounds(suites, agents, dict(floor_as or {}))
+    bounds, _ = _held_bounds(suites, agents, dict(bound_as or {}))
     watched = {(suite, agent): (kind, value) for suite, agent, kind, value, _, _ in bounds}
     planned: dict[tuple[str, str], int] = {}
     for job in jobs:
@@ -345,25 +346,25 @@ def fail_fast_stop(jobs, suites: tuple[str, ...], *, agents: tuple[str, ...] | N
     return stop
 
 
-def _check_floors(records: list[dict], suites: tuple[str, ...], *, agents: tuple[str, ...] | None = None,
-                  floor_as: dict[str, str] | None = None, limited: bool = False, stopped_early: bool = False) -> int:
+def _check_bounds(records: list[dict], suites: tuple[str, ...], *, agents: tuple[str, ...] | None = None,
+                  bound_as: dict[str, str] | None = None, limited: bool = False, stopped_early: bool = False) -> int:
     """1 when an agent of a regression suite breaks its calibrated bound
-    (:mod:`harness.runner.floors`), with one ``REGRESSION`` line on stderr per problem; else 0.
+    (:mod:`harness.runner.bounds`), with one ``REGRESSION`` line on stderr per problem; else 0.
 
-    Checked per suite of ``suites`` that has floors or ceilings: every agent with a bound when
+    Checked per suite of ``suites`` that has bounds: every agent with a bound when
     ``agents`` (the run's ``--agent`` list) is None, else the named ones that have a bound or
-    borrow one through ``floor_as`` (``{agent: built-in agent whose bound it is held to}``).
-    A problem is: a success rate below the agent's floor or above its ceiling; an episode that
+    borrow one through ``bound_as`` (``{agent: built-in agent whose bound it is held to}``).
+    A problem is: a success rate below the agent's lower bound or above its upper bound; an episode that
     crashed (status ``failed``: the agent or environment raised); an agent to check with no records; fewer episodes than its bound is sized for (unless the run was ``limited``
     with ``--limit``, which only prints a note); a regression suite with no calibrated bounds.
     Failed and timed-out episodes count as unsuccessful. A run ``stopped_early``
     (``--fail-fast``) is judged on the episodes it ran, each missing one counted at its best for
-    the agent (a success against a floor, a failure against a ceiling), so only settled
+    the agent (a success against a lower bound, a failure against an upper bound), so only settled
     verdicts are reported.
     """
     from harness.report.stats import metric_value
 
-    bounds, bad = _held_bounds(suites, agents, dict(floor_as or {}))
+    bounds, bad = _held_bounds(suites, agents, dict(bound_as or {}))
     notes = []
     for name, agent, kind, value, pinned, held in bounds:
         rs = {(r.get("episode_id"), r.get("seed")): r for r in records if r["suite"] == name and r["agent"] == agent}
@@ -386,8 +387,8 @@ def _check_floors(records: list[dict], suites: tuple[str, ...], *, agents: tuple
             continue
         rate = f"succeeded on {k} of {n} episodes" + (f" ({k / n:.0%})" if n else "")
         if planned > n:
-            rate += f" before --fail-fast stopped the run (at most {k + planned - n if kind == 'floor' else k} of {planned})"
-        if kind == "floor":
+            rate += f" before --fail-fast stopped the run (at most {k + planned - n if kind == 'lower' else k} of {planned})"
+        if kind == "lower":
             bad.append(f"{name}: {agent} {rate}, below {held}")
         else:
             bad.append(f"{name}: {agent} {rate}, above {held}: a random agent should not succeed that often (a broken success function?)")
@@ -560,12 +561,13 @@ def add_eval_commands(sub) -> None:
     run.add_argument("--resume", action="store_true", help="finish an interrupted run in --out (with no settings flags: "
                      "the settings stored in its run.json)")
     run.add_argument("--no-report", action="store_true", help="skip writing the report")
-    run.add_argument("--floor-as", action="append", metavar="AGENT=BUILTIN",
-                     help="in the regression suites, hold --agent AGENT to the calibrated floor (or ceiling) of the "
-                     "built-in agent BUILTIN, repeatable (e.g. mypkg.agents:MyPusher=map-pusher)")
+    run.add_argument("--bound-as", "--floor-as", dest="bound_as", action="append", metavar="AGENT=BUILTIN",
+                     help="in the regression suites, hold --agent AGENT to the calibrated success bound of the "
+                     "built-in agent BUILTIN, repeatable (e.g. mypkg.agents:MyPusher=map-pusher); --floor-as is its "
+                     "old name, still accepted")
     run.add_argument("--fail-fast", action="store_true",
                      help="in the regression suites, stop the run as soon as an agent's calibrated bound is certainly "
-                     "broken (a crash, or a floor its remaining episodes can no longer reach); --resume finishes it")
+                     "broken (a crash, or a lower bound its remaining episodes can no longer reach); --resume finishes it")
     run.add_argument("--record", default="failures", metavar="{failures,all,none}",
                      help="episode recordings in OUT/replays/ (camera frames, poses, actions, the map's answers; "
                      "H.264 videos that play in any browser): failures (default: every failed episode, plus the "

@@ -1,8 +1,8 @@
-"""Regenerate the calibration episodes of the regression floors (``scenes/calibration/``).
+"""Regenerate the calibration episodes of the regression bounds (``scenes/calibration/``).
 
 The regression suites pin the first episodes of the shipped files (``tabletop/episodes-v1.jsonl``,
-``household/episodes-v1.jsonl``); their floors are derived (:mod:`harness.runner.floors`) from
-runs over *other* episodes drawn from the same generators, so that a floor is never fitted to
+``household/episodes-v1.jsonl``); their bounds are derived (:mod:`harness.runner.bounds`) from
+runs over *other* episodes drawn from the same generators, so that a bound is never fitted to
 the episodes it then checks:
 
 - ``calibration/tabletop-episodes-v1.jsonl``: 150 tabletop rearrangement episodes, one fresh

@@ -1,6 +1,6 @@
 """Episodes of the v2 regression gate (``scenes/gate-v2/``): the pinned episodes the
 ``regression-rearrange-v2`` and ``regression-search-v2`` suites run in CI, and the calibration
-episodes their floors are derived from (:mod:`harness.runner.floors`).
+episodes their success bounds are derived from (:mod:`harness.runner.bounds`).
 
 Both halves are drawn like the headline's sealed episodes, with development objects in the place
 of test ones: tables and apartments on ``tower_val`` seeds no other file uses (indices from

@@ -72,12 +72,10 @@ SCENE_FOLDER = SCENES_ROOT / "tabletop-v2"
 """Where its scenes come from."""
 
 SCAN_SIZE = (320, 240)
-"""Width and height of the suite's scan frames (12 frames of an orbit). Chosen on calibration
-tables (:mod:`harness.maps.query_open_develop`, embedded-v2, 24 tables): present-query mIoU at the
-tower's floor 0.44 at 160x120 (the agents' size, the suite's default before 3 December), 0.51 at
-320x240, 0.49 at 320x240 with 24 frames; the answers found cover their objects better at the
-higher resolution (IoU 0.69 -> 0.73). ``--agent-option width=160 --agent-option height=120``
-gives the previous scans."""
+"""Width and height of the suite's scan frames (12 frames of an orbit), the size the v2 tower
+was trained at; chosen on calibration tables (:mod:`harness.maps.query_open_develop`), see
+docs/measurement-history.md. ``--agent-option width=160 --agent-option height=120`` gives
+160x120 scans."""
 
 _ABSENT_PER_SCENE = 3
 _REL = 0.6
@@ -177,7 +175,7 @@ def score_open_query_scene(scene: Scene, encoder: str, *, frames: int = 12, widt
     region in the answer's order (``[median score]`` for absent queries), from which the floored
     answer at any floor follows (the first region whose median reaches it), for choosing a floor
     on calibration tables (:mod:`harness.maps.query_open_develop`). ``drop_support=False`` answers
-    with whole regions (the mapper's ``MapperConfig.drop_support``), as before 4 December.
+    with whole regions (the mapper's ``MapperConfig.drop_support`` off).
     """
     t0 = time.perf_counter()
     scan = scan_scene(scene, frames=frames, width=width, height=height)

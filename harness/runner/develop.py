@@ -22,7 +22,7 @@ there), and prints each agent's success::
 
     python -m harness.runner.develop --suite search-v2 --agent map-navigator --out runs/develop/nav
     python -m harness.runner.develop --suite search-v2 --agent map-navigator \\
-        --agent-option stuck_steps=3 --out runs/develop/nav-bump --workers 2
+        --agent-option presume_after=0 --out runs/develop/nav-no-presume --workers 2
     python -m harness.runner.develop --suite rearrange-v2 --episodes validation --out runs/develop/push-val
     python -m harness.runner.develop --suite search-v2 --env-option width=320 \\
         --env-option height=240 --out runs/develop/nav-320

@@ -37,15 +37,15 @@ Map suites score ConceptFusion maps against simulator ground truth (:mod:`harnes
 
 The regression suites (``regression-rearrange`` and ``regression-search`` with the privileged
 oracle perception pinned, ``regression-rearrange-embedded`` with the shipped embedded tower) pin
-the first episodes of the shipped files and hold every built-in agent to a success floor (the
-random agents to a ceiling), run in CI. ``regression-rearrange-v2`` and ``regression-search-v2``
+the first episodes of the shipped files and hold every built-in agent to a lower bound on its success rate
+(the random agents to an upper bound), run in CI. ``regression-rearrange-v2`` and ``regression-search-v2``
 gate the headline pipeline the same way: the v2 world, ``embedded-v2`` pinned, the agents' shipped
 settings (``identify``, ``presume_after``, the search proposals) and the v2 camera sizes, on the
 gate's own episodes (``scenes/gate-v2/``, :data:`GATE_FOLDER`); every agent whose success can fall
 is bounded, the map agents' twins included (``frame-searcher``, which solves next to nothing with
-embedded perception, cannot get a bound that fails and is left out). Floors, ceilings and each agent's episode count are not
-set here: they are derived by :mod:`harness.runner.floors` from recorded calibration runs over
-other episodes of the same generators (``calibration_file``) and read from :data:`FLOORS_FILE`.
+embedded perception, cannot get a bound that fails and is left out). The bounds and each agent's episode count are
+not set here: they are derived by :mod:`harness.runner.bounds` from recorded calibration runs over
+other episodes of the same generators (``calibration_file``) and read from :data:`BOUNDS_FILE`.
 
 Every episode suite runs :func:`suite_episodes`: the episodes of its file (a sealed file verified
 against its manifest first) minus those on scenes the split file reserves (:mod:`sim_envs.scenes.splits`: the shipped scenes that chose or measured the
@@ -68,35 +68,35 @@ from sim_envs.scenes.sealed import SEALED_FOLDER, is_sealed_file, verify_sealed
 from sim_envs.scenes.splits import splits
 
 __all__ = ["Suite", "SUITES", "get_suite", "DEFAULT_SUITES", "REARRANGE_V2_ENV", "REARRANGE_V2_LIMIT", "SEARCH_V2_LIMIT", "CHAIN_V2_LIMIT",
-           "FRAME_SEARCHER_LIMIT", "GATE_FOLDER", "HEADLINE_GATE", "suite_encoder", "suite_episodes", "FLOORS_FILE",
+           "FRAME_SEARCHER_LIMIT", "GATE_FOLDER", "HEADLINE_GATE", "suite_encoder", "suite_episodes", "BOUNDS_FILE",
            "calibrated_bounds", "suite_over", "EPISODES_PREFIX", "TASK_TEMPLATES", "episodes_suite", "episodes_suite_name"]
 
-FLOORS_FILE = Path(__file__).resolve().parents[1] / "data" / "floors" / "floors.json"
-"""The regression suites' floors, ceilings and episode counts, written by
-``python -m harness.runner.floors --calibrate`` (never by hand)."""
+BOUNDS_FILE = Path(__file__).resolve().parents[1] / "data" / "bounds" / "bounds.json"
+"""The regression suites' success bounds and episode counts, written by
+``cfharness develop bounds --calibrate`` (never by hand)."""
 
 
-def calibrated_bounds(name: str, path: Path = FLOORS_FILE) -> dict:
-    """``floors``, ``ceilings``, ``agent_limits`` and ``limit`` of regression suite ``name`` as
-    :data:`FLOORS_FILE` records them (Suite keyword arguments); empty when the file or the suite
-    is missing there (the suite is then not calibrated, which the floor check refuses).
+def calibrated_bounds(name: str, path: Path = BOUNDS_FILE) -> dict:
+    """``lower_bounds``, ``upper_bounds``, ``agent_limits`` and ``limit`` of regression suite
+    ``name`` as :data:`BOUNDS_FILE` records them (Suite keyword arguments); empty when the file or
+    the suite is missing there (the suite is then not calibrated, which the bound check refuses).
 
     Raises:
-        HarnessError: the file is not valid floors JSON.
+        HarnessError: the file is not valid bounds JSON.
     """
     if not path.is_file():
         return {}
     try:
-        agents = read_json_file(path, "floors file", HarnessError)["suites"].get(name, {}).get("agents", {})
-        floors = {a: float(b["value"]) for a, b in agents.items() if b["bound"] == "floor"}
-        ceilings = {a: float(b["value"]) for a, b in agents.items() if b["bound"] == "ceiling"}
+        agents = read_json_file(path, "bounds file", HarnessError)["suites"].get(name, {}).get("agents", {})
+        lower = {a: float(b["value"]) for a, b in agents.items() if b["bound"] == "lower"}
+        upper = {a: float(b["value"]) for a, b in agents.items() if b["bound"] == "upper"}
         limits = {a: int(b["episodes"]) for a, b in agents.items()}
     except (ValueError, KeyError, TypeError, AttributeError) as exc:
-        raise HarnessError(f"{path}: not a floors file written by python -m harness.runner.floors --calibrate "
+        raise HarnessError(f"{path}: not a bounds file written by cfharness develop bounds --calibrate "
                            f"({type(exc).__name__}: {exc}); regenerate it") from exc
     if not agents:
         return {}
-    return {"floors": floors, "ceilings": ceilings, "agent_limits": limits, "limit": max(limits.values())}
+    return {"lower_bounds": lower, "upper_bounds": upper, "agent_limits": limits, "limit": max(limits.values())}
 
 
 @dataclass(frozen=True)
@@ -116,20 +116,20 @@ class Suite:
     """Per-episode limit; past it the episode is recorded as ``timeout``."""
     limit: int | None = None
     """Use only the first ``limit`` episodes of :func:`suite_episodes` (None: all)."""
-    floors: dict = field(default_factory=dict)
-    """Agent -> minimum success rate (regression suites; from :data:`FLOORS_FILE`)."""
-    ceilings: dict = field(default_factory=dict)
+    lower_bounds: dict = field(default_factory=dict)
+    """Agent -> minimum success rate (regression suites; from :data:`BOUNDS_FILE`)."""
+    upper_bounds: dict = field(default_factory=dict)
     """Agent -> maximum success rate (regression suites, random agents: a broken success
-    function shows as a random agent succeeding; from :data:`FLOORS_FILE`)."""
+    function shows as a random agent succeeding; from :data:`BOUNDS_FILE`)."""
     agent_limits: dict = field(default_factory=dict)
     """Agent -> how many of the first episodes it runs, instead of ``limit`` (regression suites:
-    each agent's count from the power computation of :mod:`harness.runner.floors`)."""
+    each agent's count from the power computation of :mod:`harness.runner.bounds`)."""
     calibration_file: Path | None = None
-    """Episodes the suite's floors are calibrated on (regression suites): same generators and
+    """Episodes the suite's bounds are calibrated on (regression suites): same generators and
     settings, none of the suite's own episodes."""
     encoder: str | None = None
     """Perception pinned by the suite (None: the run's ``--encoder``). The regression suites pin
-    the privileged ``oracle`` so that their floors guard planning and control; perception has its
+    the privileged ``oracle`` so that their bounds guard planning and control; perception has its
     own checks (the map suites)."""
     default_encoder: str = "embedded"
     """Perception when the run names none: the shipped tower trained for the suite's world
@@ -153,20 +153,15 @@ class Suite:
 
 REARRANGE_V2_ENV = {"width": 320, "height": 240, "scan_frames": 8}
 """Environment of ``rearrange-v2``: 320x240 frames (the size the v2 tower was trained at and
-``query-open`` scans at) and an 8-frame orbit scan. Chosen on development episodes
-(:mod:`harness.runner.develop`, ``map-pusher``, ``embedded-v2``): on the open-world validation
-tables 51 of 80 against 41 at 160x120 (13 gained, 3 lost), with ``oracle-open`` 73 against 74;
-on the calibration tables (trained instances only) 67 of 80 against 69 (2 gained, 4 lost); 12
-scan frames at 320x240 gave 47 of 80 on the validation tables."""
+``query-open`` scans at) and an 8-frame orbit scan, chosen on development episodes
+(:mod:`harness.runner.develop`) for the open-world tables; see docs/measurement-history.md."""
 
 SEARCH_V2_ENV = {"width": 320, "height": 240}
 """Environment of ``search-v2``: 320x240 frames. The search agents' proposals
 (:data:`~conceptfusion.perception.featurizer.SEARCH_PROPOSER`) keep regions down to 19 pixels at
 this size, so objects a base sees a few pixels wide at 160x120 are segmented on their own, and
 their score floor is derived for these views (``score_floor_search``). Chosen on development
-episodes (``map-navigator``, ``embedded-v2``): on the open-world validation searches 32 of 88
-against 20 at 160x120 (17 gained, 5 lost); on the first 90 calibration searches 54 against 44
-(the default proposals at 320x240, which stop at 77-pixel regions: validation 21, calibration 42)."""
+episodes (:mod:`harness.runner.develop`); see docs/measurement-history.md."""
 
 REARRANGE_V2_LIMIT = 64
 """Episodes ``rearrange-v2`` runs unless ``--limit`` says otherwise: the first 64 of its 160, so
@@ -265,7 +260,7 @@ SUITES: dict[str, Suite] = {
         Suite("spatial-v2", "maps", "spatial questions from the scene graph of v2 apartments and tabletops: 3D map vs single "
               "RGB-D frame", default_encoder="embedded-v2", **_SPATIAL_CARD),
         Suite(
-            "regression-rearrange", "episodes", "pinned tabletop episodes with calibrated success floors, oracle perception (CI)",
+            "regression-rearrange", "episodes", "pinned tabletop episodes with calibrated success bounds, oracle perception (CI)",
             task="tabletop_rearrange", episodes_file=SCENES_ROOT / "tabletop" / "episodes-v1.jsonl",
             agents=("map-pusher", "frame-pusher", "random-pusher", "oracle-pusher"),
             env_kwargs={"width": 128, "height": 96, "scan_frames": 6}, encoder="oracle",
@@ -273,14 +268,14 @@ SUITES: dict[str, Suite] = {
         ),
         Suite(
             "regression-rearrange-embedded", "episodes",
-            "pinned tabletop episodes with calibrated success floors, the shipped embedded perception (CI)",
+            "pinned tabletop episodes with calibrated success bounds, the shipped embedded perception (CI)",
             task="tabletop_rearrange", episodes_file=SCENES_ROOT / "tabletop" / "episodes-v1.jsonl",
             agents=("map-pusher", "frame-pusher"), env_kwargs={"width": 128, "height": 96, "scan_frames": 6}, encoder="embedded",
             calibration_file=SCENES_ROOT / "calibration" / "tabletop-episodes-v1.jsonl",
             **calibrated_bounds("regression-rearrange-embedded"),
         ),
         Suite(
-            "regression-search", "episodes", "pinned household search episodes with calibrated success floors, oracle perception (CI)",
+            "regression-search", "episodes", "pinned household search episodes with calibrated success bounds, oracle perception (CI)",
             task="object_search", episodes_file=SCENES_ROOT / "household" / "episodes-v1.jsonl",
             agents=("map-navigator", "frame-searcher", "random-walker", "oracle-searcher"),
             env_kwargs={"width": 160, "height": 120}, encoder="oracle",
@@ -289,7 +284,7 @@ SUITES: dict[str, Suite] = {
         Suite(
             "regression-rearrange-v2", "episodes",
             "the headline tabletop pipeline gated: pinned v2 tabletop episodes (gate set), embedded-v2 perception and the "
-            "shipped agent settings, calibrated success floors (CI, -m headline_gate)",
+            "shipped agent settings, calibrated success bounds (CI, -m headline_gate)",
             task="tabletop_rearrange", episodes_file=GATE_FOLDER / "rearrange-episodes-v2.jsonl",
             agents=("map-pusher", "twin-pusher", "frame-pusher", "random-pusher", "oracle-pusher"),
             env_kwargs=dict(REARRANGE_V2_ENV), encoder="embedded-v2",
@@ -298,7 +293,7 @@ SUITES: dict[str, Suite] = {
         Suite(
             "regression-search-v2", "episodes",
             "the headline search pipeline gated: pinned v2 apartment searches (gate set), embedded-v2 perception and the "
-            "shipped agent settings, calibrated success floors (CI, -m headline_gate)",
+            "shipped agent settings, calibrated success bounds (CI, -m headline_gate)",
             task="object_search", episodes_file=GATE_FOLDER / "search-episodes-v2.jsonl",
             agents=("map-navigator", "twin-navigator", "random-walker", "oracle-searcher"),
             env_kwargs=dict(SEARCH_V2_ENV), encoder="embedded-v2",
@@ -328,8 +323,8 @@ def suite_over(suite: Suite, name: str, episodes_file: Path) -> Suite:
     """``suite`` (its agents, environment settings and perception) over every episode of another
     file, named ``name``, with no limits, bounds or calibration file of its own: the suite's
     calibration and development runs."""
-    return dataclasses.replace(suite, name=name, episodes_file=Path(episodes_file), limit=None, agent_limits={}, floors={},
-                               ceilings={}, calibration_file=None)
+    return dataclasses.replace(suite, name=name, episodes_file=Path(episodes_file), limit=None, agent_limits={},
+                               lower_bounds={}, upper_bounds={}, calibration_file=None)
 
 
 def suite_episodes(suite: Suite) -> list[Episode]:

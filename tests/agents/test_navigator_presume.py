@@ -10,7 +10,7 @@ import pytest
 
 from agents.navigator import MapNavigator, NavigatorConfig
 from tests.agents.test_navigator_approach import GOAL, _drive, _world
-from tests.agents.test_navigator_recheck import _answer
+from tests.agents.test_navigator_faded_goal import _answer
 
 
 class _UnsureMapper:

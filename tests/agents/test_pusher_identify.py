@@ -14,7 +14,13 @@ from agents.pusher import MapPusher, PusherConfig
 from conceptfusion.map.query import QueryResult
 from conceptfusion.map.regions import Region
 from tests.agents.test_pusher_assume_present import TABLE_Z, _observation
-from tests.agents.test_pusher_track import _box
+
+
+def _box(x0, y0):
+    """Points of a 6 cm x 6 cm x 9 cm box standing on the table at (x0, y0)."""
+    g = np.meshgrid(np.arange(x0 - 0.03, x0 + 0.03, 0.01), np.arange(y0 - 0.03, y0 + 0.03, 0.01), np.arange(0.41, 0.5, 0.01),
+                    indexing="ij")
+    return np.stack([a.ravel() for a in g], axis=1)
 
 
 class _Table:

@@ -156,10 +156,10 @@ def test_duplicate_keys_in_episodes_results_run_settings_and_splits(tmp_path):
     splits.write_text('{"format": "cf-splits", "version": 1,\n "seeds": {}, "seeds": {}}')
     with pytest.raises(SplitError, match=r"splits\.json:line 1: duplicate key 'seeds'"):
         load_splits(splits)
-    floors = tmp_path / "floors.json"
-    floors.write_text('{"suites": {"search": {"agents": {}}},\n "suites": {}}')
-    with pytest.raises(HarnessError, match=r"floors\.json:line 1: duplicate key 'suites'"):
-        calibrated_bounds("search", floors)
+    bounds = tmp_path / "bounds.json"
+    bounds.write_text('{"suites": {"search": {"agents": {}}},\n "suites": {}}')
+    with pytest.raises(HarnessError, match=r"bounds\.json:line 1: duplicate key 'suites'"):
+        calibrated_bounds("search", bounds)
 
 
 def test_distinct_keys_in_sibling_objects_are_fine():

@@ -64,10 +64,10 @@ def test_query_wordings_are_what_the_agents_send_for_every_calibration_goal():
 
 
 def test_calibration_files_are_the_regression_suites_calibration_episodes():
-    from harness.runner.floors import regression_suites
+    from harness.runner.bounds import regression_suites
     from harness.runner.suites import HEADLINE_GATE
 
-    # the v1 suites' (the headline gate's v2 episodes are in the v2 world, which has its own floors)
+    # the v1 suites' (the headline gate's v2 episodes are in the v2 world, which has its own bounds)
     used = {s.calibration_file.resolve().relative_to(SCENES_ROOT.resolve()).as_posix() for s in regression_suites()
             if s.name not in HEADLINE_GATE}
     assert used == set(CALIBRATION_EPISODE_FILES)

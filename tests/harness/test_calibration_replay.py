@@ -2,7 +2,7 @@
 
 import pytest
 
-from harness.runner.floors import regression_suites, replay_sample
+from harness.runner.bounds import regression_suites, replay_sample
 from harness.runner.suites import HEADLINE_GATE
 
 
@@ -17,7 +17,7 @@ def test_a_sample_of_calibration_episodes_comes_back_exactly(suite):
 def test_a_stale_record_is_named(tmp_path):
     import json
 
-    from harness.runner.floors import RECORDS_DIR, _regression_suite, records_file
+    from harness.runner.bounds import RECORDS_DIR, _regression_suite, records_file
 
     suite = _regression_suite("regression-rearrange")
     lines = records_file(suite).read_text().splitlines()

@@ -1,5 +1,5 @@
 """The gate on the headline pipeline: the v2 regression suites (``embedded-v2`` pinned, the agents'
-shipped settings, 320x240 cameras) meet their calibrated floors, their committed calibration
+shipped settings, 320x240 cameras) meet their calibrated bounds, their committed calibration
 records come back exactly, and three sabotaged pipelines each fail the gate: a broken
 ``identify``, a broken presume rule and degraded mask proposals.
 
@@ -18,8 +18,8 @@ from pathlib import Path
 
 import pytest
 
-from harness.commands import _check_floors
-from harness.runner.floors import replay_sample
+from harness.commands import _check_bounds
+from harness.runner.bounds import replay_sample
 from harness.runner.run import RunConfig, run_suites
 from harness.runner.suites import HEADLINE_GATE as HEADLINE_SUITES, get_suite
 
@@ -28,9 +28,9 @@ REPO = Path(__file__).resolve().parents[2]
 pytestmark = [pytest.mark.gate, pytest.mark.headline_gate]
 
 
-def test_the_headline_regression_suites_meet_their_floors(tmp_path):
+def test_the_headline_regression_suites_meet_their_bounds(tmp_path):
     """Every agent of the v2 suites runs its pinned episodes with the shipped settings and none
-    falls below its calibrated floor or rises above its ceiling."""
+    falls below its calibrated lower bound or rises above its upper bound."""
     records = run_suites(RunConfig(suites=HEADLINE_SUITES, backend="process", workers=2, record="none"), tmp_path,
                          progress=False)
     assert len(records) == sum(sum(get_suite(s).agent_limits.values()) for s in HEADLINE_SUITES)
@@ -39,7 +39,7 @@ def test_the_headline_regression_suites_meet_their_floors(tmp_path):
     perceiving = [r for r in records if "encoder" in r["agent_kwargs"]]
     assert {r["agent"] for r in perceiving} == {"map-pusher", "twin-pusher", "frame-pusher", "map-navigator", "twin-navigator"}
     assert {r["encoder"] for r in perceiving} == {"embedded-v2"}
-    assert _check_floors(records, HEADLINE_SUITES) == 0
+    assert _check_bounds(records, HEADLINE_SUITES) == 0
 
 
 @pytest.mark.parametrize("suite", HEADLINE_SUITES)
@@ -96,10 +96,10 @@ def _run_cli(tmp_path, *args):
 ])
 def test_a_sabotaged_headline_pipeline_fails_the_gate(tmp_path, suite, sabotage, builtin):
     """The sabotaged agent runs the pinned episodes of the built-in one it breaks, held to that
-    agent's calibrated floor: the regression command exits 1 and names it."""
+    agent's calibrated lower bound: the regression command exits 1 and names it."""
     agent = f"cf_headline_sabotage:{sabotage}"
     n = get_suite(suite).agent_limits[builtin]
-    done = _run_cli(tmp_path, "--suite", suite, "--agent", agent, "--floor-as", f"{agent}={builtin}", "--limit", str(n),
+    done = _run_cli(tmp_path, "--suite", suite, "--agent", agent, "--bound-as", f"{agent}={builtin}", "--limit", str(n),
                     "--fail-fast", "--workers", "2", "--record", "none")
     assert done.returncode == 1, done.stdout + done.stderr
     assert "crashed" not in done.stderr  # it runs, it just does worse
@@ -107,4 +107,4 @@ def test_a_sabotaged_headline_pipeline_fails_the_gate(tmp_path, suite, sabotage,
     records = [json.loads(line) for line in (tmp_path / "run" / "results.jsonl").read_text().splitlines()]
     assert all(r["encoder"] == "embedded-v2" for r in records)
     k, ran = sum(r["metrics"]["success"] for r in records), len(records)
-    assert k + (n - ran) < get_suite(suite).floors[builtin] * n  # the floor is out of reach on what ran
+    assert k + (n - ran) < get_suite(suite).lower_bounds[builtin] * n  # the lower bound is out of reach on what ran

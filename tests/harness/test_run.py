@@ -1,4 +1,4 @@
-"""Runs end to end: regression floors, every agent through a full episode, backends that agree,
+"""Runs end to end: regression bounds, every agent through a full episode, backends that agree,
 and a run killed with SIGKILL that resumes to the same summary."""
 
 from __future__ import annotations
@@ -15,7 +15,7 @@ import numpy as np
 import pytest
 
 from harness.runner.backends import run_jobs
-from harness.commands import _check_floors
+from harness.commands import _check_bounds
 from harness.runner.results import load_results
 from harness.runner.run import RunConfig, episode_jobs, run_suites
 from harness.report.stats import summarize
@@ -30,13 +30,13 @@ def _outcome(rec: dict) -> tuple:
 
 
 @pytest.mark.gate
-def test_regression_suites_meet_their_floors(tmp_path):
+def test_regression_suites_meet_their_bounds(tmp_path):
     """The CI regression gate: every built-in agent of both tasks (map-equipped, map-free,
     random and privileged) runs its pinned episodes headless, with oracle perception and with
-    the embedded one, each is scored, and none falls below its calibrated floor or rises above
-    its ceiling (:mod:`harness.runner.floors`)."""
+    the embedded one, each is scored, and none falls below its calibrated lower bound or rises above
+    its upper bound (:mod:`harness.runner.bounds`)."""
     suites = ("regression-rearrange", "regression-rearrange-embedded", "regression-search")
-    # No recordings: the gate checks floors (recordings have their own tests, test_replay.py).
+    # No recordings: the gate checks bounds (recordings have their own tests, test_replay.py).
     records = run_suites(RunConfig(suites=suites, backend="process", workers=2, record="none"), tmp_path, progress=False)
     expected = sum(sum(get_suite(s).agent_limits.values()) for s in suites)
     assert len(records) == expected
@@ -45,7 +45,7 @@ def test_regression_suites_meet_their_floors(tmp_path):
         assert isinstance(r["metrics"]["success"], bool) and r["metrics"]["steps"] >= 1
         if r["task"] == "object_search":
             assert 0.0 <= r["metrics"]["spl"] <= 1.0 and r["metrics"]["distance_to_goal"] >= 0.0
-    assert _check_floors(records, suites) == 0
+    assert _check_bounds(records, suites) == 0
     by_agent = {}
     for r in records:
         by_agent.setdefault(r["agent"], []).append(r["metrics"]["success"])
@@ -54,11 +54,11 @@ def test_regression_suites_meet_their_floors(tmp_path):
     assert by_agent["map-navigator"] > by_agent["random-walker"]
 
 
-def test_floors_catch_an_agent_below_them():
+def test_bounds_catch_an_agent_below_them():
     suite = get_suite("regression-rearrange")
     recs = [{"suite": suite.name, "agent": "map-pusher", "episode_id": f"e{i}", "seed": 0, "status": "ok",
              "metrics": {"success": False}} for i in range(suite.agent_limits["map-pusher"])]
-    assert _check_floors(recs, (suite.name,), agents=("map-pusher",)) == 1
+    assert _check_bounds(recs, (suite.name,), agents=("map-pusher",)) == 1
 
 
 @pytest.mark.parametrize("suite, agent", [("regression-rearrange", "map-pusher"), ("regression-search", "map-navigator")])
@@ -78,24 +78,24 @@ def _records(suite: str, agent: str, outcomes: list[bool], status: str = "ok") -
             for i, ok in enumerate(outcomes)]
 
 
-def test_fail_fast_stops_exactly_when_a_floor_is_out_of_reach(capsys):
+def test_fail_fast_stops_exactly_when_a_lower_bound_is_out_of_reach(capsys):
     from harness.commands import fail_fast_stop
 
     suite = get_suite("regression-rearrange")
-    n, floor = suite.agent_limits["map-pusher"], suite.floors["map-pusher"]
+    n, lower = suite.agent_limits["map-pusher"], suite.lower_bounds["map-pusher"]
     jobs = episode_jobs(suite, RunConfig(suites=(suite.name,), agents=("map-pusher",)), "t")
     assert len(jobs) == n
     stop = fail_fast_stop(jobs, (suite.name,), agents=("map-pusher",))
-    allowed = n - int(np.ceil(floor * n - 1e-9))  # failures the floor tolerates
+    allowed = n - int(np.ceil(lower * n - 1e-9))  # failures the lower bound tolerates
     verdicts = [stop(r) for r in _records(suite.name, "map-pusher", [False] * (allowed + 1))]
     assert verdicts == [False] * allowed + [True]
     # the verdict on the records that ran: broken for certain, reported as stopped early
     partial = _records(suite.name, "map-pusher", [False] * (allowed + 1))
-    assert _check_floors(partial, (suite.name,), agents=("map-pusher",), stopped_early=True) == 1
+    assert _check_bounds(partial, (suite.name,), agents=("map-pusher",), stopped_early=True) == 1
     err = capsys.readouterr().err
-    assert "before --fail-fast stopped the run" in err and "below its floor" in err and "note:" in err
+    assert "before --fail-fast stopped the run" in err and "below its lower bound" in err and "note:" in err
     # one failure fewer is not settled: no regression, only a note that the run stopped
-    assert _check_floors(partial[:-1], (suite.name,), agents=("map-pusher",), stopped_early=True) == 0
+    assert _check_bounds(partial[:-1], (suite.name,), agents=("map-pusher",), stopped_early=True) == 0
     # a resumed run counts the records it already holds: one more failure settles it
     resumed = fail_fast_stop(jobs, (suite.name,), agents=("map-pusher",), done=partial[:-1])
     assert resumed(_records(suite.name, "map-pusher", [False] * (allowed + 1))[-1])
@@ -104,14 +104,14 @@ def test_fail_fast_stops_exactly_when_a_floor_is_out_of_reach(capsys):
     assert not fail_fast_stop(jobs, (suite.name,), agents=("map-pusher",))(_records(suite.name, "random-pusher", [True])[0])
 
 
-def test_fail_fast_stops_a_ceiling_once_passed():
+def test_fail_fast_stops_an_upper_bound_once_passed():
     from harness.commands import fail_fast_stop
 
     suite = get_suite("regression-search")
-    n, ceiling = suite.agent_limits["random-walker"], suite.ceilings["random-walker"]
+    n, upper = suite.agent_limits["random-walker"], suite.upper_bounds["random-walker"]
     jobs = episode_jobs(suite, RunConfig(suites=(suite.name,), agents=("random-walker",)), "t")
     stop = fail_fast_stop(jobs, (suite.name,), agents=("random-walker",))
-    allowed = int(np.floor(ceiling * n + 1e-9))
+    allowed = int(np.floor(upper * n + 1e-9))
     assert [stop(r) for r in _records(suite.name, "random-walker", [True] * (allowed + 1))] == [False] * allowed + [True]
 
 

@@ -7,7 +7,7 @@ from pathlib import Path
 import pytest
 
 from harness.maps.suites import MAP_SUITES, scene_ids
-from harness.runner.floors import calibration_suite, regression_suites
+from harness.runner.bounds import calibration_suite, regression_suites
 from harness.runner.map_jobs import map_suite_jobs
 from harness.runner.run import RunConfig, episode_jobs
 from harness.runner.suites import HEADLINE_GATE, SUITES, get_suite, suite_episodes
@@ -17,7 +17,7 @@ from tower_training.score_floor import FloorConfig
 
 RESERVED = frozenset(splits().reserved_scene_ids())
 FLOOR_CALIBRATION = frozenset(p.stem for p in (SCENES_ROOT / "calibration").glob("*.json") if "episodes" not in p.stem)
-"""Scene ids of the regression floors' calibration episodes (``scenes/calibration/``)."""
+"""Scene ids of the regression bounds' calibration episodes (``scenes/calibration/``)."""
 
 
 def _suite_scenes(name: str) -> list[tuple[str, int | None]]:
@@ -76,7 +76,7 @@ def test_episode_suites_skip_reserved_episodes_and_keep_their_counts():
             mine = [j.episode.episode_id for j in jobs if j.agent == agent]
             assert mine == [e.episode_id for e in suite_episodes(suite)[:suite.agent_limits.get(agent, suite.limit)]]
             assert len(mine) == suite.agent_limits.get(agent, suite.limit)
-        # the floors' own calibration episodes are all kept
+        # the bounds' own calibration episodes are all kept
         cal = calibration_suite(suite)
         assert len(suite_episodes(cal)) == len(load_episodes(suite.calibration_file).episodes)
     with pytest.raises(ValueError, match="suite 'query' has no episodes file"):

@@ -35,7 +35,7 @@ def test_own_episodes_on_own_scenes_run_and_resume(tmp_path, capsys):
     eps = _write_episodes(tmp_path)
     suite = get_suite(episodes_suite_name(eps, tmp_path / "scenes"))
     assert suite.task == "tabletop_rearrange" and suite.agents == get_suite("rearrange-v2").agents
-    assert suite.limit is None and not suite.floors and suite.env_kwargs["scenes_root"] == str((tmp_path / "scenes").resolve())
+    assert suite.limit is None and not suite.lower_bounds and suite.env_kwargs["scenes_root"] == str((tmp_path / "scenes").resolve())
     out = tmp_path / "run"
     args = ["run", "--episodes", str(eps), "--scenes", str(tmp_path / "scenes"), "--agent", "random-pusher", "--backend",
             "serial", "--out", str(out), "--no-report", "--record", "none"]

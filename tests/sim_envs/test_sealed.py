@@ -5,7 +5,7 @@ import shutil
 
 import pytest
 
-from harness.runner import develop, floors
+from harness.runner import bounds, develop
 from harness.runner.suites import get_suite, suite_episodes
 from sim_envs.scenes import sealed
 from sim_envs.scenes.episodes import SCENES_ROOT, load_episodes, resolve_scene
@@ -141,8 +141,8 @@ def test_floor_calibration_refuses_the_sealed_set():
     import dataclasses
 
     suite = dataclasses.replace(get_suite("regression-search"), calibration_file=SEARCH)
-    with pytest.raises(SealedSetError, match="python -m harness.runner.floors"):
-        floors.calibration_suite(suite)
+    with pytest.raises(SealedSetError, match="cfharness develop bounds"):
+        bounds.calibration_suite(suite)
 
 
 def test_map_suite_development_scripts_refuse_sealed_scenes():

@@ -12,7 +12,8 @@ import pytest
 
 from agents.builtin import make_mapper
 from agents.registry import make_agent
-from conceptfusion.perception.featurizer import SEARCH_PROPOSER, PerceivedFeaturizer, _score_floor, make_featurizer, score_floor_for
+from conceptfusion.perception.featurizer import SEARCH_PROPOSER, PerceivedFeaturizer, make_featurizer, score_floor_for
+from conceptfusion.perception.score_floor import encoder_score_floor
 from conceptfusion.perception.image_tower import SHIPPED_TOWER_V2_DIR
 from sim_envs.scenes.splits import splits
 from tower_training.score_floor import FloorConfigV2
@@ -65,8 +66,8 @@ def test_floors_per_setting():
     assert score_floor_for(v1, "search") == v1.score_floor
     # a setting without its own floor falls back to household, then tabletop
     tower = SimpleNamespace(info={"metrics": {"score_floor": 0.5, "score_floor_household": 0.3}})
-    assert (_score_floor(tower, "search"), _score_floor(tower, "household"), _score_floor(tower, "tabletop")) == (0.3, 0.3, 0.5)
-    assert _score_floor(SimpleNamespace(info={"metrics": {}}), "search") is None
+    assert (encoder_score_floor(tower, "search"), encoder_score_floor(tower, "household"), encoder_score_floor(tower, "tabletop")) == (0.3, 0.3, 0.5)
+    assert encoder_score_floor(SimpleNamespace(info={"metrics": {}}), "search") is None
     # the search agents see apartments with their own proposals; the pushers work on tables
     nav = make_agent("map-navigator", encoder="embedded-v2")
     assert nav.mapper.config.min_score == SHIPPED["score_floor_search"]

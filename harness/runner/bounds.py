@@ -1,39 +1,39 @@
-"""Regression floors with statistical power, derived from recorded calibration runs.
+"""Success bounds of the regression suites, with statistical power, derived from recorded calibration runs.
 
 A regression suite (:mod:`harness.runner.suites`: ``regression-rearrange``,
 ``regression-rearrange-embedded``, ``regression-search``, and the headline gate
 ``regression-rearrange-v2``, ``regression-search-v2``) pins the first episodes of an episode
-file and holds every agent it runs to a *floor* on its success rate (the random agents to a
-*ceiling*: a broken success function shows as a random agent succeeding). No floor is set by
+file and holds every agent it runs to a *lower bound* on its success rate (the random agents to an
+*upper bound*: a broken success function shows as a random agent succeeding). No bound is set by
 hand: this module derives each one from a recorded **calibration run**, the same agents with the
 same settings (environment size, scan frames, pinned perception, seed) over *other* episodes drawn
 from the same generators (the suite's ``calibration_file``: ``scenes/calibration/``, made by
 ``python -m scenes.make_calibration``, for the v1 suites; ``scenes/gate-v2/``, made by ``python -m
-scenes.make_gate_v2``, for the headline gate; not one of them is a regression episode, so a floor
+scenes.make_gate_v2``, for the headline gate; not one of them is a regression episode, so a bound
 is never fitted to the episodes it checks).
 
 **Procedure** (:func:`derive_bound`), for an agent that succeeded on ``k`` of ``m`` calibration
 episodes, calibrated rate ``p = k / m``, confidence ``1 - a`` (:data:`CONFIDENCE`, a = 0.05):
 
-- *Floor* for ``n`` regression episodes: the largest count ``c`` with ``P(Bin(n, p) < c) <= a``;
-  the floor is ``c / n`` and the check fails when the run's rate is below it. Equivalently, the
+- *Lower bound* for ``n`` regression episodes: the largest count ``c`` with ``P(Bin(n, p) < c) <= a``;
+  the lower bound is ``c / n`` and the check fails when the run's rate is below it. Equivalently, the
   check fails exactly when the exact one-sided ``1 - a`` Clopper-Pearson upper bound of the run's
   success rate falls below the calibrated rate ``p``: the run shows, at that confidence, that the
   agent got worse than calibrated (:func:`clopper_pearson`; the test suite checks the two agree).
-- *Ceiling* (random agents): the smallest ``c`` with ``P(Bin(n, p) > c) <= a``; the check fails
+- *Upper bound* (random agents): the smallest ``c`` with ``P(Bin(n, p) > c) <= a``; the check fails
   when the rate is above ``c / n`` (the Clopper-Pearson lower bound of the run's rate rises above
   ``p``).
 - *Power* (:func:`detection_probability`): the exact binomial probability that the check fails
-  when the agent's true rate has dropped by :data:`DROP` (15 points) from ``p`` (a ceiling: risen by
+  when the agent's true rate has dropped by :data:`DROP` (15 points) from ``p`` (an upper bound: risen by
   15 points), ``P(Bin(n, p - 0.15) < c)``. The episode count ``n`` is the smallest that reaches
-  :data:`POWER` (80%) and whose bound can fail at all (``c >= 1`` for a floor, ``c < n`` for a
-  ceiling), within the suite's CI budget :data:`MAX_EPISODES` and the episodes its file holds;
+  :data:`POWER` (80%) and whose bound can fail at all (``c >= 1`` for a lower bound, ``c < n`` for an
+  upper bound), within the suite's CI budget :data:`MAX_EPISODES` and the episodes its file holds;
   where the target needs more, ``n`` is the smallest count with the highest detection
   probability the budget allows, and that probability is recorded (``power_met`` false) instead
-  of being claimed. An agent that almost never succeeds cannot be given a floor that can fail
-  on few episodes: at a calibrated rate ``p`` even a floor of one success needs ``n`` with
+  of being claimed. An agent that almost never succeeds cannot be given a lower bound that can fail
+  on few episodes: at a calibrated rate ``p`` even a lower bound of one success needs ``n`` with
   ``(1 - p)^n <= a`` (149 episodes at p = 0.02, 299 at p = 0.01). ``frame-searcher`` (oracle
-  perception, 1 of 100 calibration episodes) is such an agent: its floor is 0 (``can_fail``
+  perception, 1 of 100 calibration episodes) is such an agent: its lower bound is 0 (``can_fail``
   false) and it runs one pinned episode, which guards only against crashes (the check fails any
   crashed episode, ``harness.commands``), not against it finding goals less often.
 - *False alarms*: ``false_alarm`` is the probability that an unchanged agent whose true rate is
@@ -43,17 +43,16 @@ episodes, calibrated rate ``p = k / m``, confidence ``1 - a`` (:data:`CONFIDENCE
   is the chance that a calibration plus a regression run of an unchanged agent disagree; it is
   larger than ``a`` because ``p`` is itself an estimate from ``m`` episodes. With many bounds in
   the gate, the chance that *some* bound fails for unchanged agents is far larger than any one
-  bound's (``false_alarm_any_expected`` in the floors file): with per-bound 95% counts it was
+  bound's (``false_alarm_any_expected`` in the bounds file): with per-bound 95% counts it was
   about 45% for the ten v1 bounds, the price of catching a 15-point drop with 80% probability per
   agent on at most 100 episodes; hence the family-wise counts below.
 
 All of it is exact binomial (or beta-binomial) arithmetic from :mod:`scipy.stats`, never a
 normal approximation. The regression episodes are pinned and the agents deterministic, so a run
-of unchanged code always gives the same verdict (a false alarm shows the day the floors are
+of unchanged code always gives the same verdict (a false alarm shows the day the bounds are
 calibrated), while a change that leaves an agent's rate as it was still reshuffles which
-episodes it solves, and then fails a bound with the probabilities above. The first run of the
-gate with per-bound 95% counts failed one bound of ten: ``map-pusher`` with embedded perception
-solved 36 of its 69 pinned episodes, below its floor of 38 (calibrated on 96 of 150). The gate
+episodes it solves, and then fails a bound with the probabilities above (per-bound counts gave
+such a false alarm on the gate's first run; see docs/measurement-history.md). The gate
 therefore sets every count at the family-wise level (:data:`FAMILY_ALARM`,
 :func:`family_confidence`: the whole gate fails for unchanged agents at their calibrated rates
 with probability at most 5%), keeping the episode counts chosen for per-bound power; the
@@ -63,16 +62,16 @@ whose 34-36 pinned searches at a calibrated rate near one half catch a fall of 2
 the time and one of 30 points three times in four: they guard against a broken pipeline, not a
 small slip).
 
-**Files.** The calibration records (``harness/data/floors/<suite>.jsonl``, results records as
-the runner writes them, less the per-step ``extras.path_xy`` traces) and the floors
-(:data:`~harness.runner.suites.FLOORS_FILE`, read by the suites) are written only by::
+**Files.** The calibration records (``harness/data/bounds/<suite>.jsonl``, results records as
+the runner writes them, less the per-step ``extras.path_xy`` traces) and the bounds
+(:data:`~harness.runner.suites.BOUNDS_FILE`, read by the suites) are written only by::
 
-    python -m harness.runner.floors --calibrate [--suite NAME ...]   # run, then write records + floors
-    python -m harness.runner.floors --check                          # recompute from the records, compare
+    cfharness develop bounds --calibrate [--suite NAME ...]   # run, then write records + bounds
+    cfharness develop bounds --check                          # recompute from the records, compare
 
 ``--check`` recomputes every bound from the committed records with this code, checks that the
 records cover every agent and calibration episode with the suite's current settings, and exits 1
-when anything differs from the committed floors file.
+when anything differs from the committed bounds file.
 """
 
 from __future__ import annotations
@@ -93,15 +92,15 @@ from conceptfusion.names import unknown_name_error
 from harness.report.stats import metric_value
 from harness.runner.results import latest_records, load_results
 from harness.runner.run import RunConfig, episode_jobs, run_missing_jobs
-from harness.runner.suites import FLOORS_FILE, SUITES, Suite, suite_encoder, suite_episodes, suite_over
+from harness.runner.suites import BOUNDS_FILE, SUITES, Suite, suite_encoder, suite_episodes, suite_over
 from sim_envs.scenes.episodes import SCENES_ROOT, load_episodes
 from sim_envs.scenes.sealed import refuse_sealed_episodes
 
 __all__ = [
-    "CONFIDENCE", "DROP", "POWER", "MAX_EPISODES", "CEILING_AGENTS", "FLOORS_FORMAT", "FLOORS_VERSION", "RECORDS_DIR",
-    "Bound", "floor_count", "ceiling_count", "detection_probability", "false_alarm_probability",
+    "CONFIDENCE", "DROP", "POWER", "MAX_EPISODES", "UPPER_BOUND_AGENTS", "BOUNDS_FORMAT", "BOUNDS_VERSION", "RECORDS_DIR",
+    "Bound", "lower_count", "upper_count", "detection_probability", "false_alarm_probability",
     "expected_false_alarm", "clopper_pearson", "derive_bound", "regression_suites", "calibration_suite",
-    "records_file", "load_calibration", "derive_suite", "derive_floors", "calibrate", "check", "replay_sample",
+    "records_file", "load_calibration", "derive_suite", "derive_bounds", "calibrate", "check", "replay_sample",
     "markdown_table", "main",
 ]
 
@@ -117,7 +116,7 @@ unchanged agents at their calibrated rates: each bound's count is set at the Sid
 ``1 - (1 - FAMILY_ALARM) ** (1 / bounds)`` (the episode counts stay those chosen for per-bound
 power at :data:`CONFIDENCE`, so the recorded detection probabilities are those of the lower
 family-wise counts)."""
-"""Target probability of catching a drop of :data:`DROP` (a rise, for a ceiling)."""
+"""Target probability of catching a drop of :data:`DROP` (a rise, for an upper bound)."""
 MAX_EPISODES = {"regression-rearrange": 100, "regression-rearrange-embedded": 100, "regression-search": 50,
                 "regression-rearrange-v2": 80, "regression-search-v2": 36}
 """Most pinned episodes an agent may run per regression suite (CI budget, and for v1 search and
@@ -125,12 +124,12 @@ v2 rearrangement all the pinned episodes): the power computation chooses within 
 episode takes about 11 s with embedded perception, so ``regression-search-v2`` holds each
 navigator to at most 36 (half the gate's 72 pinned searches, about 7 minutes of the gate on two
 cores)."""
-CEILING_AGENTS = frozenset({"random-pusher", "random-walker"})
-"""Agents held to a ceiling instead of a floor."""
-FLOORS_FORMAT = "cf-floors"
-FLOORS_VERSION = 1
-RECORDS_DIR = FLOORS_FILE.parent
-"""Folder of the committed calibration records and the floors file."""
+UPPER_BOUND_AGENTS = frozenset({"random-pusher", "random-walker"})
+"""Agents held to an upper bound instead of a lower bound."""
+BOUNDS_FORMAT = "cf-bounds"
+BOUNDS_VERSION = 1
+RECORDS_DIR = BOUNDS_FILE.parent
+"""Folder of the committed calibration records and the bounds file."""
 _DROPPED_EXTRAS = ("path_xy",)
 """Per-step traces left out of the committed records (the outcome fields are kept whole)."""
 
@@ -149,9 +148,9 @@ def _check_rate(p: float) -> None:
         raise ValueError(f"rate: expected a number in [0, 1], got {p!r}")
 
 
-def floor_count(rate: float, n: int, confidence: float = CONFIDENCE) -> int:
+def lower_count(rate: float, n: int, confidence: float = CONFIDENCE) -> int:
     """The largest ``c`` in ``0..n`` with ``P(Bin(n, rate) < c) <= 1 - confidence``: a run of ``n``
-    episodes fails a floor when it has fewer than ``c`` successes."""
+    episodes fails a lower bound when it has fewer than ``c`` successes."""
     _check_rate(rate)
     _check_counts(0, n)
     alpha = 1.0 - confidence
@@ -161,9 +160,9 @@ def floor_count(rate: float, n: int, confidence: float = CONFIDENCE) -> int:
     return c
 
 
-def ceiling_count(rate: float, n: int, confidence: float = CONFIDENCE) -> int:
+def upper_count(rate: float, n: int, confidence: float = CONFIDENCE) -> int:
     """The smallest ``c`` in ``0..n`` with ``P(Bin(n, rate) > c) <= 1 - confidence``: a run of ``n``
-    episodes fails a ceiling when it has more than ``c`` successes."""
+    episodes fails an upper bound when it has more than ``c`` successes."""
     _check_rate(rate)
     _check_counts(0, n)
     alpha = 1.0 - confidence
@@ -175,16 +174,16 @@ def ceiling_count(rate: float, n: int, confidence: float = CONFIDENCE) -> int:
 
 def _fails(kind: str, count: int, n: int, rate: float) -> float:
     """P(the check fails) for a true rate ``rate``, exact binomial."""
-    if kind == "floor":
+    if kind == "lower":
         return float(stats.binom.cdf(count - 1, n, rate)) if count > 0 else 0.0
     return float(stats.binom.sf(count, n, rate))
 
 
 def detection_probability(kind: str, count: int, n: int, rate: float, drop: float = DROP) -> float:
-    """Probability that the check (``kind`` ``"floor"`` or ``"ceiling"`` at ``count`` of ``n``)
-    fails when the true rate has moved ``drop`` from ``rate`` the wrong way (down for a floor, up
-    for a ceiling; clipped to [0, 1])."""
-    moved = max(rate - drop, 0.0) if kind == "floor" else min(rate + drop, 1.0)
+    """Probability that the check (``kind`` ``"lower"`` or ``"upper"`` at ``count`` of ``n``)
+    fails when the true rate has moved ``drop`` from ``rate`` the wrong way (down for a lower bound, up
+    for an upper bound; clipped to [0, 1])."""
+    moved = max(rate - drop, 0.0) if kind == "lower" else min(rate + drop, 1.0)
     return _fails(kind, count, n, moved)
 
 
@@ -197,7 +196,7 @@ def expected_false_alarm(kind: str, count: int, n: int, k: int, m: int) -> float
     """Probability that an unchanged agent fails the check, averaged over the calibration's
     uncertainty about its rate (``k`` of ``m``; Jeffreys posterior, beta-binomial predictive)."""
     a, b = k + 0.5, m - k + 0.5
-    if kind == "floor":
+    if kind == "lower":
         return float(stats.betabinom.cdf(count - 1, n, a, b)) if count > 0 else 0.0
     return float(stats.betabinom.sf(count, n, a, b))
 
@@ -216,18 +215,19 @@ def clopper_pearson(k: int, n: int, confidence: float = CONFIDENCE, side: str = 
 
 @dataclass(frozen=True)
 class Bound:
-    """One agent's floor or ceiling in one regression suite, and how it was derived.
+    """One agent's lower or upper bound in one regression suite, and how it was derived.
 
     The check (``harness.commands``) fails when the agent's success rate over its ``episodes``
-    pinned episodes is below ``value`` (a floor) or above it (a ceiling); ``value = count / episodes``.
+    pinned episodes is below ``value`` (a lower bound) or above it (an upper bound);
+    ``value = count / episodes``.
     """
 
     agent: str
     bound: str
-    """``"floor"`` or ``"ceiling"``."""
+    """``"lower"`` or ``"upper"``."""
     value: float
     count: int
-    """Successes at the bound: a floor fails below ``count`` successes, a ceiling above."""
+    """Successes at the bound: a lower bound fails below ``count`` successes, an upper bound above."""
     episodes: int
     """Pinned regression episodes the agent runs (the first ``episodes`` of the suite's file)."""
     calibration_successes: int
@@ -237,7 +237,7 @@ class Bound:
     power_met: bool
     """Whether ``detection`` reaches :data:`POWER` (False: the CI budget was too small)."""
     can_fail: bool
-    """Whether any outcome of the run fails the check (a floor of 0 cannot)."""
+    """Whether any outcome of the run fails the check (a lower bound of 0 cannot)."""
     false_alarm: float
     """P(check fails) for an agent exactly at the calibrated rate (<= 1 - :data:`CONFIDENCE`)."""
     false_alarm_expected: float
@@ -248,7 +248,7 @@ class Bound:
         return self.calibration_successes / self.calibration_episodes
 
     def as_json(self) -> dict:
-        """The floors-file entry (probabilities rounded to 4 digits; ``value`` exact)."""
+        """The bounds-file entry (probabilities rounded to 4 digits; ``value`` exact)."""
         return {
             "bound": self.bound, "value": self.value, "count": self.count, "episodes": self.episodes,
             "calibration": {"successes": self.calibration_successes, "episodes": self.calibration_episodes,
@@ -274,16 +274,16 @@ def derive_bound(agent: str, kind: str, successes: int, episodes: int, max_episo
     and catches a move of ``drop`` with probability ``power``; where none does, the smallest ``n``
     with the highest detection probability within the budget (1 when no bound can fail at all:
     the episode then only shows that the agent runs without crashing)."""
-    if kind not in ("floor", "ceiling"):
-        raise ValueError(f"kind: expected 'floor' or 'ceiling', got {kind!r}")
+    if kind not in ("lower", "upper"):
+        raise ValueError(f"kind: expected 'lower' or 'upper', got {kind!r}")
     _check_counts(successes, episodes)
     _check_counts(0, max_episodes)
     rate = successes / episodes
-    count_at = floor_count if kind == "floor" else ceiling_count
+    count_at = lower_count if kind == "lower" else upper_count
     chosen, best = None, (-1.0, 0)
     for n in range(1, max_episodes + 1):
         c = count_at(rate, n, confidence)
-        can_fail = c >= 1 if kind == "floor" else c < n
+        can_fail = c >= 1 if kind == "lower" else c < n
         det = detection_probability(kind, c, n, rate, drop) if can_fail else 0.0
         if det >= power:
             chosen = n
@@ -295,14 +295,14 @@ def derive_bound(agent: str, kind: str, successes: int, episodes: int, max_episo
     return Bound(
         agent=agent, bound=kind, value=c / n, count=c, episodes=n, calibration_successes=successes,
         calibration_episodes=episodes, detection=det, power_met=det >= power,
-        can_fail=c >= 1 if kind == "floor" else c < n, false_alarm=false_alarm_probability(kind, c, n, rate),
+        can_fail=c >= 1 if kind == "lower" else c < n, false_alarm=false_alarm_probability(kind, c, n, rate),
         false_alarm_expected=expected_false_alarm(kind, c, n, successes, episodes),
     )
 
 
 # ------------------------------------------------------------------------------ suites and records
 def regression_suites() -> list[Suite]:
-    """The suites with calibrated floors (those naming a ``calibration_file``), in registry order."""
+    """The suites with calibrated bounds (those naming a ``calibration_file``), in registry order."""
     return [s for s in SUITES.values() if s.calibration_file is not None]
 
 
@@ -317,7 +317,7 @@ def calibration_suite(suite: Suite) -> Suite:
     """``suite`` over its calibration episodes (all of them), named ``<suite>-calibration``."""
     if suite.calibration_file is None:
         raise HarnessError(f"suite {suite.name!r} has no calibration episodes (not a regression suite)")
-    refuse_sealed_episodes(suite.calibration_file, "python -m harness.runner.floors")
+    refuse_sealed_episodes(suite.calibration_file, "cfharness develop bounds")
     return suite_over(suite, f"{suite.name}-calibration", suite.calibration_file)
 
 
@@ -331,7 +331,7 @@ def _relative(path: Path) -> str:
 
 
 def _settings(suite: Suite) -> dict:
-    """What a calibration must share with the regression run (stored in the floors file)."""
+    """What a calibration must share with the regression run (stored in the bounds file)."""
     return {"episodes_file": _relative(suite.episodes_file), "calibration_file": _relative(suite.calibration_file),
             "env_kwargs": dict(suite.env_kwargs), "encoder": suite_encoder(suite, None), "seed": 0,
             "agents": list(suite.agents), "max_episodes": _max_episodes(suite)}
@@ -353,7 +353,7 @@ def load_calibration(suite: Suite, folder: Path = RECORDS_DIR) -> dict[str, list
     path = records_file(suite, folder)
     if not path.is_file():
         raise HarnessError(f"{path}: no calibration records for suite {suite.name!r}; run "
-                           f"python -m harness.runner.floors --calibrate --suite {suite.name}")
+                           f"cfharness develop bounds --calibrate --suite {suite.name}")
     records = latest_records(load_results(path, strict=True))
     expected_ids = [e.episode_id for e in load_episodes(suite.calibration_file).episodes]
     name = calibration_suite(suite).name
@@ -381,20 +381,20 @@ def load_calibration(suite: Suite, folder: Path = RECORDS_DIR) -> dict[str, list
 
 
 def derive_suite(suite: Suite, folder: Path = RECORDS_DIR, *, check_confidence: float | None = None) -> dict:
-    """The floors-file entry of one regression suite, recomputed from its committed records;
+    """The bounds-file entry of one regression suite, recomputed from its committed records;
     ``check_confidence``: the level the counts are set at (default :data:`CONFIDENCE`)."""
     cal = load_calibration(suite, folder)
     max_n = _max_episodes(suite)
     agents = {}
     for agent, outcomes in cal.items():
-        kind = "ceiling" if agent in CEILING_AGENTS else "floor"
+        kind = "upper" if agent in UPPER_BOUND_AGENTS else "lower"
         agents[agent] = derive_bound(agent, kind, sum(outcomes), len(outcomes), max_n,
                                      check_confidence=check_confidence).as_json()
     return {"records": records_file(suite, folder).name, "settings": _settings(suite), "agents": agents}
 
 
-def derive_floors(folder: Path = RECORDS_DIR) -> dict:
-    """The whole floors file, recomputed from the committed calibration records.
+def derive_bounds(folder: Path = RECORDS_DIR) -> dict:
+    """The whole bounds file, recomputed from the committed calibration records.
 
     ``false_alarm_any_expected`` is the probability that at least one bound of all the suites
     fails for unchanged agents, ``1 - prod(1 - false_alarm_expected)`` (bounds independent): each
@@ -408,15 +408,15 @@ def derive_floors(folder: Path = RECORDS_DIR) -> dict:
         for b in entry["agents"].values():
             quiet *= 1.0 - b["false_alarm_expected"]
     return {
-        "format": FLOORS_FORMAT, "version": FLOORS_VERSION,
+        "format": BOUNDS_FORMAT, "version": BOUNDS_VERSION,
         "method": {
-            "confidence": CONFIDENCE, "drop": DROP, "power": POWER, "ceiling_agents": sorted(CEILING_AGENTS),
+            "confidence": CONFIDENCE, "drop": DROP, "power": POWER, "upper_bound_agents": sorted(UPPER_BOUND_AGENTS),
             "family_alarm": FAMILY_ALARM, "bounds": bounds, "check_confidence": round(level, 6),
             "counts": "episode counts chosen for per-bound power at `confidence`; bound counts set at `check_confidence` "
                       "so that the whole gate fails for unchanged agents with probability at most `family_alarm`",
-            "floor": "largest c with P(Bin(n, p) < c) <= 1 - confidence, p = calibrated rate: fails iff the run's "
+            "lower": "largest c with P(Bin(n, p) < c) <= 1 - confidence, p = calibrated rate: fails iff the run's "
                      "one-sided Clopper-Pearson upper bound is below p",
-            "ceiling": "smallest c with P(Bin(n, p) > c) <= 1 - confidence",
+            "upper": "smallest c with P(Bin(n, p) > c) <= 1 - confidence",
             "episodes": "smallest n <= max_episodes whose bound can fail and catches a move of `drop` with "
                         "probability >= power (exact binomial)",
         },
@@ -425,7 +425,7 @@ def derive_floors(folder: Path = RECORDS_DIR) -> dict:
     }
 
 
-def _floors_text(data: dict) -> str:
+def _bounds_text(data: dict) -> str:
     return json.dumps(data, indent=1, sort_keys=False) + "\n"
 
 
@@ -446,13 +446,13 @@ def _claim_work_dir(work: Path, suites: list[Suite]) -> None:
     atomic_write_text(path, json.dumps({**stored, **{s.name: _settings(s) for s in suites}}, indent=1))
 
 
-def calibrate(suites: list[Suite] | None = None, *, work_dir: str | Path = "runs/floors-calibration",
+def calibrate(suites: list[Suite] | None = None, *, work_dir: str | Path = "runs/bounds-calibration",
               backend: str = "process", workers: int | None = None, folder: Path = RECORDS_DIR,
-              floors_file: Path = FLOORS_FILE, progress: bool = True) -> dict:
+              bounds_file: Path = BOUNDS_FILE, progress: bool = True) -> dict:
     """Run the calibration episodes of ``suites`` (default: every regression suite) for every
     agent into ``work_dir/results.jsonl`` (an interrupted calibration resumes there), then write
-    each suite's records to ``folder`` and the floors recomputed from all committed records to
-    ``floors_file``, every file atomically. Returns the floors data."""
+    each suite's records to ``folder`` and the bounds recomputed from all committed records to
+    ``bounds_file``, every file atomically. Returns the bounds data."""
     suites = list(suites or regression_suites())
     work = Path(work_dir)
     results = work / "results.jsonl"
@@ -470,8 +470,8 @@ def calibrate(suites: list[Suite] | None = None, *, work_dir: str | Path = "runs
                       key=lambda r: (order[r["agent"]], r["episode_id"]))
         text = "".join(json.dumps(_strip(r), allow_nan=False, separators=(",", ":")) + "\n" for r in mine)
         atomic_write_text(records_file(suite, folder), text)
-    data = derive_floors(folder)
-    atomic_write_text(floors_file, _floors_text(data))
+    data = derive_bounds(folder)
+    atomic_write_text(bounds_file, _bounds_text(data))
     return data
 
 
@@ -481,7 +481,7 @@ def replay_sample(suite: Suite, per_agent: int = 2, folder: Path = RECORDS_DIR, 
     with the committed records: ``status`` and every metric must come back exactly. Returns the
     differences (empty: the records are still what the code does), naming agent, episode, field,
     committed and new value. Committed records that the code no longer reproduces make every
-    floor derived from them stale."""
+    bound derived from them stale."""
     from harness.runner.tasks import run_episode
 
     cal = calibration_suite(suite)
@@ -516,19 +516,19 @@ def _diff(want, got, path: str = "") -> list[str]:
     return [] if want == got else [f"{path}: recomputed {want!r}, committed {got!r}"]
 
 
-def check(folder: Path = RECORDS_DIR, floors_file: Path = FLOORS_FILE) -> list[str]:
-    """Differences between the floors recomputed from the committed records and ``floors_file``
+def check(folder: Path = RECORDS_DIR, bounds_file: Path = BOUNDS_FILE) -> list[str]:
+    """Differences between the bounds recomputed from the committed records and ``bounds_file``
     (empty: they agree)."""
     try:
-        want = derive_floors(folder)
+        want = derive_bounds(folder)
     except (HarnessError, OSError, ValueError) as exc:
         return [str(exc)]
-    if not Path(floors_file).is_file():
-        return [f"{floors_file}: missing; run python -m harness.runner.floors --calibrate"]
+    if not Path(bounds_file).is_file():
+        return [f"{bounds_file}: missing; run cfharness develop bounds --calibrate"]
     try:
-        got = read_json_file(floors_file, "floors file", HarnessError)
+        got = read_json_file(bounds_file, "bounds file", HarnessError)
     except ValueError as exc:
-        return [f"{floors_file}: not JSON ({exc})"]
+        return [f"{bounds_file}: not JSON ({exc})"]
     return _diff(want, got)
 
 
@@ -547,7 +547,7 @@ def _table(data: dict) -> str:
 
 
 def markdown_table(data: dict) -> str:
-    """The floors of ``data`` (a floors file's content) as the Markdown table of
+    """The bounds of ``data`` (a bounds file's content) as the Markdown table of
     ``docs/regression-gate.md``, one row per bound (the test suite checks the page holds exactly
     this table, recomputed from the committed records)."""
     lines = ["| suite | agent | bound | calibration | pinned episodes | detects a 15-point drop (rise) | false alarm (at p / expected) |",
@@ -563,13 +563,13 @@ def markdown_table(data: dict) -> str:
 
 
 def main(argv: list[str] | None = None) -> int:
-    ap = argparse.ArgumentParser(prog="python -m harness.runner.floors", description=__doc__.splitlines()[0])
+    ap = argparse.ArgumentParser(prog="python -m harness.runner.bounds", description=__doc__.splitlines()[0])
     what = ap.add_mutually_exclusive_group(required=True)
-    what.add_argument("--calibrate", action="store_true", help="run the calibration episodes, write records and floors")
-    what.add_argument("--check", action="store_true", help="recompute the floors from the committed records and compare")
-    what.add_argument("--derive", action="store_true", help="recompute the floors from the committed records and write them")
+    what.add_argument("--calibrate", action="store_true", help="run the calibration episodes, write records and bounds")
+    what.add_argument("--check", action="store_true", help="recompute the bounds from the committed records and compare")
+    what.add_argument("--derive", action="store_true", help="recompute the bounds from the committed records and write them")
     ap.add_argument("--suite", action="append", help="regression suite to calibrate (repeatable; default: all)")
-    ap.add_argument("--work", default="runs/floors-calibration", help="folder of the calibration run (resumable)")
+    ap.add_argument("--work", default="runs/bounds-calibration", help="folder of the calibration run (resumable)")
     ap.add_argument("--backend", default="process", help="where episodes run (process, serial, ray)")
     ap.add_argument("--workers", type=int, default=None, help="worker processes (default: CPU count)")
     args = ap.parse_args(argv)
@@ -578,23 +578,23 @@ def main(argv: list[str] | None = None) -> int:
             suites = [_regression_suite(n) for n in args.suite] if args.suite else None
             data = calibrate(suites, work_dir=args.work, backend=args.backend, workers=args.workers)
         except (HarnessError, ValueError, OSError) as exc:
-            print(f"floors --calibrate: {exc}", file=sys.stderr)
+            print(f"bounds --calibrate: {exc}", file=sys.stderr)
             return 2
         print(_table(data))
-        print(f"wrote {FLOORS_FILE}")
+        print(f"wrote {BOUNDS_FILE}")
         return 0
     if args.derive:
-        data = derive_floors()
-        atomic_write_text(FLOORS_FILE, _floors_text(data))
+        data = derive_bounds()
+        atomic_write_text(BOUNDS_FILE, _bounds_text(data))
         print(_table(data))
-        print(f"wrote {FLOORS_FILE}")
+        print(f"wrote {BOUNDS_FILE}")
         return 0
     problems = check()
     for line in problems:
-        print(f"floors --check: {line}", file=sys.stderr)
+        print(f"bounds --check: {line}", file=sys.stderr)
     if not problems:
-        print(_table(json.loads(FLOORS_FILE.read_text())))
-        print("floors match the committed calibration records")
+        print(_table(json.loads(BOUNDS_FILE.read_text())))
+        print("bounds match the committed calibration records")
     return 1 if problems else 0
 
 

@@ -1,12 +1,12 @@
-"""The navigator's close-range exploration (``explore_range``): space counts as explored for
-frontiers only where a fused frame saw it from close enough; off (0) by default."""
+"""The space a navigator that looks again (``look_again``, the map-free twin) counts as explored
+for frontiers once a later goal of a chain is revealed: only what its frames show from then on,
+within the map's depth range; the map navigator's frontiers are found on its whole grid."""
 
 from __future__ import annotations
 
 import dataclasses
 
 import numpy as np
-import pytest
 
 from agents.frontier import find_frontiers
 from agents.navigator import MapNavigator, NavigatorConfig
@@ -14,7 +14,16 @@ from planners.occupancy import build_occupancy_grid
 
 
 class _NoMapper:
+    """Only the map's depth range, which bounds the space a frame shows."""
+
     privileged = False
+    config = type("C", (), {"max_depth": 1.5})()
+
+
+def _looking_again(agent: MapNavigator) -> MapNavigator:
+    """``agent`` as it is right after a later goal was revealed with ``look_again``."""
+    agent._looking_again = True
+    return agent
 
 
 def _looking_down(height: float = 1.0, x: float = 0.0) -> dict:
@@ -34,16 +43,16 @@ def _floor_grid(config: NavigatorConfig, half: float = 3.0):
     return build_occupancy_grid(pts, dataclasses.replace(config.grid, padding=0.0))
 
 
-def test_off_by_default_the_frontier_grid_is_the_map_grid():
+def test_the_map_navigator_finds_frontiers_on_its_whole_grid():
     agent = MapNavigator(_NoMapper(), NavigatorConfig())
     grid = _floor_grid(agent.config)
     assert agent._frontier_grid(grid) is grid
 
 
-def test_only_what_was_seen_within_range_counts_as_explored():
-    config = NavigatorConfig(explore_range=1.5)
-    agent = MapNavigator(_NoMapper(), config)
-    agent._see_close(_looking_down(height=2.0))  # beyond the range: nothing seen up close
+def test_only_what_was_seen_since_within_the_depth_range_counts_as_explored():
+    config = NavigatorConfig(look_again=True)
+    agent = _looking_again(MapNavigator(_NoMapper(), config))
+    agent._see_close(_looking_down(height=2.0))  # beyond the map's depth range: nothing seen
     assert len(agent._close_keys) == 0
     agent._see_close(_looking_down(height=1.0))  # footprint 2 m x 2 m around the origin
     grid = _floor_grid(config)
@@ -64,7 +73,7 @@ def test_only_what_was_seen_within_range_counts_as_explored():
 
 
 def test_seen_space_accumulates_over_frames():
-    agent = MapNavigator(_NoMapper(), NavigatorConfig(explore_range=1.5))
+    agent = _looking_again(MapNavigator(_NoMapper(), NavigatorConfig(look_again=True)))
     agent._see_close(_looking_down(x=0.0))
     one = len(agent._close_keys)
     agent._see_close(_looking_down(x=0.0))
@@ -73,9 +82,3 @@ def test_seen_space_accumulates_over_frames():
     narrowed = agent._frontier_grid(_floor_grid(agent.config))
     xy = narrowed.cell_to_world(np.argwhere(narrowed.known_hw))
     assert xy[:, 0].min() < -2.3 and xy[:, 0].max() > 0.9
-
-
-@pytest.mark.parametrize("value", [-1.0, float("inf"), "near"])
-def test_bad_explore_range(value):
-    with pytest.raises(ValueError, match="explore_range"):
-        NavigatorConfig(explore_range=value)
