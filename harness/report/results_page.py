@@ -53,7 +53,7 @@ def _sealed_section(records_file: Path) -> list[str]:
         "",
         f"Each map agent against its matched map-free twin on the sealed episodes (`scenes/sealed-v2/`), measured once"
         + (f" at commit `{commit[:7]}`" if commit else "") + f"; {len(records)} records in "
-        "`harness/data/sealed/records.jsonl`, recomputed for this page (`python -m harness.report.headline` wrote them).",
+        "`harness/data/sealed/records.jsonl`, recomputed for this page (`cfharness develop headline` wrote them).",
         "",
         headline_table(measured), "", "Success per position in a chain (the first k goals reached in a row):", "",
         positions_table(measured), "", "Every agent's success:", "", agents_table(measured), "",
