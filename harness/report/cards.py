@@ -108,6 +108,13 @@ def _headline_metric(records: list[dict], declared: str) -> str | None:
     return present[0] if present else None
 
 
+def headline_metric(records, suite: str) -> str | None:
+    """The metric a suite is judged by, for its card and its episode rows: the one the suite
+    declares (:attr:`harness.runner.suites.Suite.headline_metric`) when its records have it,
+    else ``success``, else the records' first metric; None when they have none."""
+    return _headline_metric([r for r in records if r.get("suite") == suite], _spec(suite).headline_metric)
+
+
 def _twin_pairs(records: list[dict], groups) -> list[tuple[Group, Group]]:
     """(map agent, its twin) for the twins whose records name a map agent that ran (same encoder)."""
     out = set()
@@ -136,7 +143,7 @@ def suite_answer(records: list[dict], suite: str) -> SuiteAnswer | None:
     no record of it has a metric."""
     recs = [r for r in records if r.get("suite") == suite]
     spec = _spec(suite)
-    metric = _headline_metric(recs, spec.headline_metric)
+    metric = _headline_metric(recs, spec.headline_metric)  # headline_metric(), with the spec at hand
     if metric is None:
         return None
     stats = {(row.agent, row.encoder): row.metrics[metric] for row in summarize(recs, (metric,)) if metric in row.metrics}

@@ -8,7 +8,8 @@ inside a bundle); a map is shown as the command that opens it in the viewer.
 
 Agent suites (a ``success`` metric) mark each row success, miss, or the status of a crash or
 timeout, with the cause of a failure (:func:`harness.report.causes.failure_cause`). Map suites
-have no success: their rows give the suite's headline metric (:data:`HEADLINE_METRICS`) instead.
+have no success: their rows give the suite's headline metric
+(:func:`harness.report.cards.headline_metric`) instead.
 """
 
 from __future__ import annotations
@@ -17,41 +18,18 @@ import math
 import os
 from pathlib import Path
 
-from harness.report.causes import cause_text, failure_cause, goal_text, is_scored
+from harness.report.cards import headline_metric
+from harness.report.causes import cause_text, failure_cause, goal_text
 from harness.report.document import Cell, Table
 from harness.report.links import ReportLinks
 from harness.report.stats import metric_value
 from harness.runner.results import agent_label
 
-__all__ = ["episode_table", "headline_metric", "HEADLINE_METRICS"]
-
-HEADLINE_METRICS = {
-    "map_query": "text_miou",
-    "map_query_open": "name_miou",
-    "spatial_qa": "accuracy",
-    "map_ablation": "fmiou",
-}
-"""Task -> the metric an episode row of a map suite (no ``success``) shows as its outcome."""
+__all__ = ["episode_table"]
 
 _PREFERRED = ("success", "spl", "distance_to_goal", "steps", "collisions", "goals_reached")
 _MAX_METRICS = 5
 _ERROR_CHARS = 120
-
-
-def headline_metric(records) -> str | None:
-    """The metric rows of these records show as their outcome: ``success`` when any has it, else
-    the task's :data:`HEADLINE_METRICS` entry, else the first metric name in order; None
-    when the records have no metric."""
-    records = list(records)
-    if any(is_scored(r) for r in records):
-        return "success"
-    seen = sorted({m for r in records for m in (r.get("metrics") or {})})
-    for r in records:
-        name = HEADLINE_METRICS.get(str(r.get("task")))
-        if name in seen:
-            return name
-    return seen[0] if seen else None
-
 
 def _outcome(record: dict, headline: str | None) -> tuple[int, str, str]:
     """(order: 0 crashed or timed out, 1 miss, 2 success or unscored; text; row kind)."""
@@ -120,7 +98,7 @@ def episode_table(run_items, suite: str, out_dir: str | os.PathLike, *, show_run
     """
     links = links or ReportLinks(Path(out_dir))
     recs = [(r, base, label) for r, base, label in run_items if r["suite"] == suite]
-    headline = headline_metric(r for r, _, _ in recs)
+    headline = headline_metric([r for r, _, _ in recs], suite)
     metrics = _metric_columns([r for r, _, _ in recs], headline)
     head = (*(("run",) if show_run else ()), "agent", "encoder", "episode", "seed", "outcome", "cause", "goal",
             "category", *metrics, "s", "error", "replay", "map")
