@@ -94,6 +94,7 @@ class HouseholdBackend:
                 width, height, fovy = camera
                 lut = self.sim.body_lut() if labels == "objects" else self.sim.body_labels()
                 self.camera = PyBulletRGBDCamera(self._client, width, height, fovy_deg=fovy, body_object=lut, far=_FAR)
+                self.camera.warm_up()  # seeded resets repeat their first observation
         except BaseException:
             self.close()
             raise

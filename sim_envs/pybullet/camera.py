@@ -34,6 +34,7 @@ RENDERERS = ("auto", "tiny", "egl")
 
 _log = logging.getLogger(__name__)
 _EGL_PLUGINS: dict[int, int] = {}
+_WARM: set[int] = set()  # clients whose first images were rendered (PyBulletRGBDCamera.warm_up)
 _EGL_CONTEXTS: dict[int, tuple] = {}  # client -> (display, draw, read, context) its plugin made current
 
 
@@ -121,6 +122,7 @@ def forget_client(client: int) -> None:
     (PyBullet reuses client ids)."""
     _EGL_PLUGINS.pop(client, None)
     _EGL_CONTEXTS.pop(client, None)
+    _WARM.discard(client)
 
 
 class PyBulletRGBDCamera:
@@ -243,6 +245,24 @@ class PyBulletRGBDCamera:
         else:
             labels = np.full((self.height, self.width), -1, np.int32)
         return RGBDFrame(rgb=rgb, depth=depth, K=self.K.copy(), cam_to_world=pybullet_camera_pose(self._view), segmentation=labels)
+
+    def warm_up(self) -> None:
+        """Render and drop the client's first images. The EGL plugin shades the first two images
+        of a client differently from every later one (measured: colours up to 33 levels apart,
+        depth and labels the same), so without this a seeded reset would not repeat its first
+        observation. Keeps the current pose."""
+        import pybullet as p
+
+        if self.renderer != "egl" or self.client in _WARM:
+            return
+        view = self._view
+        self._view = p.computeViewMatrix([0.0, 0.0, 1.0], [1.0, 0.0, 1.0], [0.0, 0.0, 1.0])
+        try:
+            for _ in range(2):
+                self.render(segmentation=False)
+        finally:
+            self._view = view
+        _WARM.add(self.client)
 
     def close(self) -> None:
         """Nothing to release (the client owns the renderer); present for symmetry."""
