@@ -5,6 +5,7 @@ planning, control, for `map-navigator` (object search) and `map-pusher` (rearran
     python benchmarks/bench_step.py --encoder oracle --search 1 --rearrange 2
     python benchmarks/bench_step.py --rearrange 0 --search-option keyframe_move=0.3 --search-option keyframe_turn_deg=20
     python benchmarks/bench_step.py --world v2            # search-v2 and rearrange-v2 episodes, embedded-v2
+    python benchmarks/bench_step.py --world v2 --search 1 --rearrange 0 --sim both   # a search step, MuJoCo against PyBullet
 
 Each component is timed exclusively (a call inside another timed call counts for the inner one
 only) by wrapping the functions the agents and environments call:
@@ -12,6 +13,10 @@ only) by wrapping the functions the agents and environments call:
 | component | what is timed |
 |---|---|
 | render | the environment's step (simulation, collision checks and the RGB-D render) and reset |
+
+``--sim pybullet`` runs the search episodes in PyBullet (the environment's ``backend``), ``--sim
+both`` in each simulator in turn, and prints the PyBullet step's ratio to the MuJoCo step.
+Rearrangement always runs in MuJoCo here.
 | proposals | the mask proposer (`propose`) |
 | encoder | image embeddings (`encode_image`) and text embeddings (`encode_text`) |
 | mixing | the rest of the pixel features (eqs. 3-6, the palette) |
@@ -111,9 +116,11 @@ SUITE_OF = {("search", "v1"): "search", ("rearrange", "v1"): "rearrange", ("sear
 """(task, world) -> the suite whose episodes and environment settings (camera, scan) are timed."""
 
 
-def run(task: str, agent_name: str, encoder: str, episodes: int, options: dict | None = None, world: str = "v1") -> dict:
+def run(task: str, agent_name: str, encoder: str, episodes: int, options: dict | None = None, world: str = "v1",
+        sim: str = "mujoco") -> dict:
     """Roll the first ``episodes`` episodes of the shipped ``world`` suite of ``task`` with a timed
-    agent (``options``: extra agent options, e.g. ``{"keyframe_move": 0.3}``)."""
+    agent (``options``: extra agent options, e.g. ``{"keyframe_move": 0.3}``) in simulator ``sim``
+    (search only)."""
     from agents.registry import make_agent
     from harness.runner.tasks import env_kwargs_for
     from sim_envs.envs.object_search import ObjectSearchEnv
@@ -127,7 +134,7 @@ def run(task: str, agent_name: str, encoder: str, episodes: int, options: dict |
     # As the harness builds them: the ground-truth segmentation pass only for a privileged
     # agent, the orbit scan only for an agent that reads it.
     if task == "search":
-        env = ObjectSearchEnv(**env_kwargs_for("object_search", suite.env_kwargs, agent))
+        env = ObjectSearchEnv(**env_kwargs_for("object_search", {**suite.env_kwargs, "backend": sim}, agent))
     else:
         env = TabletopRearrangeEnv(**env_kwargs_for("tabletop_rearrange", suite.env_kwargs, agent))
     timer = ExclusiveTimer()
@@ -155,7 +162,7 @@ def run(task: str, agent_name: str, encoder: str, episodes: int, options: dict |
             successes += bool(info.get("success"))
     env.close()
     total = sum(walls)
-    return {"task": f"{task} {world}", "agent": agent_name, "options": dict(options or {}), "encoder": encoder, "episodes": len(eps), "steps": steps,
+    return {"task": f"{task} {world}" + (f" {sim}" if task == "search" else ""), "agent": agent_name, "sim": sim, "options": dict(options or {}), "encoder": encoder, "episodes": len(eps), "steps": steps,
             "successes": successes, "wall_s": total, "cpu_s": sum(timer.cpu.values()),
             "per_component_s": {c: timer.total.get(c, 0.0) for c in COMPONENTS},
             "per_component_cpu_s": {c: timer.cpu.get(c, 0.0) for c in COMPONENTS}}
@@ -181,6 +188,8 @@ def main(argv: list[str] | None = None) -> int:
     parser.add_argument("--encoder", default=None, help="perception (default: embedded for v1, embedded-v2 for v2)")
     parser.add_argument("--search", type=int, default=2, help="search episodes (map-navigator)")
     parser.add_argument("--rearrange", type=int, default=3, help="rearrangement episodes (map-pusher)")
+    parser.add_argument("--sim", choices=("mujoco", "pybullet", "both"), default="mujoco",
+                        help="simulator of the search episodes (both: each in turn, then the ratio)")
     parser.add_argument("--search-option", action="append", default=[], metavar="KEY=VALUE",
                         help="a map-navigator option, e.g. keyframe_move=0.3 (repeatable)")
     args = parser.parse_args(argv)
@@ -195,7 +204,20 @@ def main(argv: list[str] | None = None) -> int:
     print(probe_line())
     encoder = args.encoder or {"v1": "embedded", "v2": "embedded-v2"}[args.world]
     if args.search:
-        report(run("search", "map-navigator", encoder, args.search, options, args.world))
+        sims = ("mujoco", "pybullet") if args.sim == "both" else (args.sim,)
+        results = {sim: run("search", "map-navigator", encoder, args.search, options, args.world, sim) for sim in sims}
+        for r in results.values():
+            report(r)
+        if len(results) == 2:
+            per = {k: (r["wall_s"] / max(r["steps"], 1), r["cpu_s"] / max(r["steps"], 1)) for k, r in results.items()}
+            render = {k: r["per_component_cpu_s"]["render"] / max(r["steps"], 1) for k, r in results.items()}
+            # The agent drives differently in each simulator (other frames, other keyframes), so
+            # the whole steps are not the same work; swapping the render alone compares like for like.
+            same_steps = per["pybullet"][1] / max(per["pybullet"][1] - render["pybullet"] + render["mujoco"], 1e-9)
+            print(f"\nrender CPU per step: MuJoCo {1000 * render['mujoco']:.1f} ms ({100 * render['mujoco'] / per['mujoco'][1]:.0f}% "
+                  f"of its step), PyBullet {1000 * render['pybullet']:.1f} ms ({100 * render['pybullet'] / per['pybullet'][1]:.0f}%)")
+            print(f"PyBullet step / MuJoCo step: whole episodes CPU {per['pybullet'][1] / per['mujoco'][1]:.2f}x (different "
+                  f"trajectories); the PyBullet episode's steps with MuJoCo's render instead: {same_steps:.2f}x (target at most 1.5x)")
     if args.rearrange:
         report(run("rearrange", "map-pusher", encoder, args.rearrange, world=args.world))
     return 0

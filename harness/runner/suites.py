@@ -244,6 +244,16 @@ SUITES: dict[str, Suite] = {
             question="After exploring, does the map help the navigator fetch described objects one after another?",
             headline_metric="success",
         ),
+        Suite(
+            "search-v2-pybullet", "episodes",
+            "search-v2 in PyBullet: the same sealed episodes, apartments and camera, rendered and loaded by PyBullet instead "
+            "of MuJoCo (does an agent's result survive the change of simulator?)",
+            task="object_search", episodes_file=SEALED_FOLDER / "search-episodes-v2.jsonl",
+            agents=("map-navigator", "twin-navigator", "random-walker"),
+            env_kwargs={**SEARCH_V2_ENV, "backend": "pybullet"}, default_encoder="embedded-v2", limit=SEARCH_V2_LIMIT,
+            question="Does the navigator's search survive a change of renderer and physics (PyBullet against MuJoCo)?",
+            headline_metric="success",
+        ),
         Suite("query", "maps", "text, image and click query localisation over fused tabletop maps (3D mIoU, detection accuracy)",
               question=_Q_QUERY, headline_metric="text_miou"),
         Suite("query-open", "maps",

@@ -204,10 +204,15 @@ def _goal_text(job: EpisodeJob) -> str:
     return job.episode.instruction
 
 
+def _sim_of(job: EpisodeJob) -> str:
+    """The simulator an episode runs in: its suite's ``backend`` setting (default ``"mujoco"``)."""
+    return str(job.env_kwargs.get("backend", "mujoco"))
+
+
 def _ended_extras(job: EpisodeJob, status: str) -> dict:
-    """``goal`` and ``stop_reason`` of an episode that timed out or crashed (status ``timeout``,
-    ``failed``)."""
-    return {"goal": _goal_text(job), "stop_reason": status_stop_reason(status)}
+    """``goal``, ``stop_reason`` and ``sim`` of an episode that timed out or crashed (status
+    ``timeout``, ``failed``)."""
+    return {"goal": _goal_text(job), "stop_reason": status_stop_reason(status), "sim": _sim_of(job)}
 
 
 def _description(job: EpisodeJob, scene=None) -> dict:
@@ -283,7 +288,9 @@ TASK_RUNNERS: dict[str, Callable[..., tuple[dict, dict, str | None, dict]]] = {
 """Per task: (job, agent, recorder=None) -> (metrics, timings, goal category, extras); the
 recorder (an :class:`~harness.replay.record.EpisodeRecorder` or None) follows the rollout. Both
 tasks' extras carry ``goal`` (the goal text as the agent read it) and ``stop_reason`` (a word of
-:data:`~harness.runner.stop_reasons.STOP_REASONS`); a search's also ``success_radius`` (m)."""
+:data:`~harness.runner.stop_reasons.STOP_REASONS`); a search's also ``success_radius`` (m). Every
+record's extras also say which simulator ran it (``sim``: ``"mujoco"`` or ``"pybullet"``, added
+by the runner)."""
 
 
 def episode_recorder(job: EpisodeJob, agent=None) -> EpisodeRecorder | None:
@@ -334,6 +341,7 @@ def run_episode(job: EpisodeJob) -> dict:
         if spec is not None and spec.twin_of:
             extras["twin_of"] = spec.twin_of
         extras["privileged"] = bool(getattr(agent, "privileged", False))
+        extras["sim"] = _sim_of(job)
     except SystemExit as exc:  # sys.exit() in an agent ends the episode, not the run
         _past_deadline_then_close("the episode called sys.exit()")
         status = "failed"

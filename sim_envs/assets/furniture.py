@@ -15,7 +15,7 @@ from __future__ import annotations
 from dataclasses import dataclass
 from typing import Callable
 
-__all__ = ["Surface", "FurnitureKind", "FURNITURE", "MATERIALS", "materials_xml", "material_name"]
+__all__ = ["Surface", "FurnitureKind", "FURNITURE", "MATERIALS", "materials_xml", "material_name", "material_look"]
 
 
 @dataclass(frozen=True)
@@ -66,6 +66,15 @@ MATERIALS: tuple[str, ...] = tuple(sorted(_MATERIAL_SPECS))
 def material_name(name: str) -> str:
     """The MJCF material name of a furniture/wall/floor material (prefixed: no clash with others)."""
     return f"hm_{name}"
+
+
+def material_look(name: str) -> tuple[str, tuple[float, float, float], tuple[float, float, float]]:
+    """``(builtin pattern, rgb1, rgb2)`` of a material of :data:`MATERIALS` (``"checker"``,
+    ``"gradient"`` or ``"flat"``), for simulators that draw their own textures."""
+    if name not in _MATERIAL_SPECS:
+        raise ValueError(f"material: expected one of {list(MATERIALS)}, got {name!r}")
+    builtin, rgb1, rgb2 = _MATERIAL_SPECS[name][:3]
+    return builtin, rgb1, rgb2
 
 
 def materials_xml() -> str:

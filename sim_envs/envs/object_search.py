@@ -1,4 +1,5 @@
-"""``cf/ObjectSearch-v0``: drive a mobile base to an object described in words (MuJoCo household).
+"""``cf/ObjectSearch-v0``: drive a mobile base to an object described in words (household, in
+MuJoCo or PyBullet).
 
 The base is a kinematic unicycle, a disc of ``robot_radius`` that collides with the floor plan
 (walls, doors as gaps, furniture footprints: :func:`sim_envs.scenes.floorplan.occupancy_grid`), with an
@@ -25,8 +26,7 @@ from sim_envs.envs.checks import (
     check_scenes_root, episode_from_options,
 )
 from sim_envs.envs.rendering import LastFrameRendering, check_render_mode, frame_spaces
-from sim_envs.mujoco.camera import MujocoRGBDCamera
-from sim_envs.mujoco.scene import build_mujoco
+from sim_envs.envs.household_backends import HouseholdBackend, check_backend
 from sim_envs.scenes.descriptions import answer_phrases
 from sim_envs.scenes.episodes import Episode, EpisodeSet, resolve_scene, start_outside_message
 from sim_envs.scenes.floorplan import occupancy_grid
@@ -99,6 +99,14 @@ class ObjectSearchEnv(EpisodeLifecycle, LastFrameRendering, gym.Env):
     ``object_search`` episode file), by default the shipped one. Scene paths are relative to
     ``scenes_root`` (default: the shipped ``scenes/`` folder).
 
+    **Simulators**: ``backend="mujoco"`` (default) or ``"pybullet"`` builds the same apartment
+    (:mod:`sim_envs.envs.household_backends`); only the rendered frames differ. The base's
+    kinematics, collisions, shortest paths and success are computed from the scene description and
+    the object boxes, the same in both (a goal box may differ by up to about 2 cm: MuJoCo boxes a
+    library mesh in its principal axes, PyBullet boxes the object's size in its pose). A scene
+    PyBullet cannot build (a broken mesh, a collision piece without volume) is refused at
+    ``reset``, naming the scene file, the field and the mesh file.
+
     **Input checks** (:mod:`sim_envs.envs.checks`): ``reset`` options other than ``episode`` and
     ``episode_index`` (or both together) are refused, naming the nearest valid key; an episode is
     checked field by field (a goal, a finite start pose on free floor, an instruction that fits
@@ -107,12 +115,14 @@ class ObjectSearchEnv(EpisodeLifecycle, LastFrameRendering, gym.Env):
     (:class:`~conceptfusion.errors.EnvStateError`). Constructor arguments are checked:
     ``width``/``height`` ints in [1, 8192]; ``fovy_deg`` in (0, 180); ``camera_pitch_deg`` in
     (-90, 90); ``camera_height``, ``robot_radius``, ``success_distance``, ``control_dt`` finite
-    and > 0; ``max_steps`` ``None`` or an int >= 1; ``scenes_root`` ``None`` or a folder.
+    and > 0; ``max_steps`` ``None`` or an int >= 1; ``scenes_root`` ``None`` or a folder;
+    ``backend`` a key of :data:`~sim_envs.envs.household_backends.HOUSEHOLD_BACKENDS`.
     """
 
     metadata = {"render_modes": ["rgb_array"], "render_fps": 4}
     env_name = "ObjectSearch"
     reset_option_keys = ("episode", "episode_index")
+    _renderer_attr = "_backend"  # close() releases the simulation and its camera
 
     def __init__(
         self,
@@ -131,8 +141,10 @@ class ObjectSearchEnv(EpisodeLifecycle, LastFrameRendering, gym.Env):
         segmentation: bool = True,
         camera: bool = True,
         render_mode: str | None = None,
+        backend: str = "mujoco",
     ) -> None:
         where = self.env_name
+        self.backend = check_backend(where, backend)
         check_render_mode(render_mode)
         self.segmentation = check_bool(where, "segmentation", segmentation)
         self.camera = check_bool(where, "camera", camera)
@@ -165,8 +177,7 @@ class ObjectSearchEnv(EpisodeLifecycle, LastFrameRendering, gym.Env):
                 "goal": spaces.Text(max_length=_MAX_GOAL, min_length=1, charset=_GOAL_CHARSET),
             }
         )
-        self._sim = None
-        self._camera: MujocoRGBDCamera | None = None
+        self._backend: HouseholdBackend | None = None
         self._scene_key = None
         self._object_phrases: list[list[str]] = []
         self._last_frame = None
@@ -179,17 +190,12 @@ class ObjectSearchEnv(EpisodeLifecycle, LastFrameRendering, gym.Env):
         scene = resolve_scene(episode.scene, episode.scene_seed, scenes_root=self.scenes_root)
         if not scene.rooms:
             raise SimError(f"{self.env_name}: episode {episode.episode_id!r}: scene {scene.id} is not a household scene (no rooms)")
-        closed = self._sim is None or (self.camera and self._camera is None)
-        if self._scene_key != scene.id or closed:
-            if self._camera is not None:
-                self._camera.close()
-                self._camera = None
-            self._sim = build_mujoco(scene)
-            if self.camera:
-                self._camera = MujocoRGBDCamera(
-                    self._sim.model, self._sim.data, self.width, self.height,
-                    fovy_deg=self.fovy_deg, geom_object=self._sim.geom_object,
-                )
+        if self._scene_key != scene.id or self._backend is None:
+            if self._backend is not None:
+                self._backend.close()
+                self._backend = None
+            camera = (self.width, self.height, self.fovy_deg) if self.camera else None
+            self._backend = HouseholdBackend(self.backend, scene, camera=camera, source=episode.scene)
             occ = occupancy_grid(scene, cell=0.05)
             self._occ, self._free = occ, occ.clearance() > self.robot_radius
             self._scene_key = scene.id
@@ -238,7 +244,7 @@ class ObjectSearchEnv(EpisodeLifecycle, LastFrameRendering, gym.Env):
         box = self._goal_box
         self._max_steps = int(self._max_steps_override or episode.max_steps)
         obs, info = self._observe()
-        info["scene_graph"] = scene_graph(self._sim)
+        info["scene_graph"] = scene_graph(self._backend.sim)
         # Ground truth for scoring and privileged agents, at reset only: the floor plan's free
         # cells for the base (inflated by the robot radius), the grid's frame and the goal's box.
         info["free_grid"] = self._free.copy()
@@ -255,7 +261,7 @@ class ObjectSearchEnv(EpisodeLifecycle, LastFrameRendering, gym.Env):
         ids = [o.id for o in self.scene.objects]
         self._goal_k = k
         self._goal_index = ids.index(self.episode.goals[k].object_id)
-        box = object_aabbs(self._sim)[self._goal_index]
+        box = object_aabbs(self._backend.sim)[self._goal_index]
         self._goal_box = box
         cx, cy = self._occ.centres()
         d = np.sqrt(np.maximum(np.maximum(box[0, 0] - cx, 0), cx - box[1, 0]) ** 2 + np.maximum(np.maximum(box[0, 1] - cy, 0), cy - box[1, 1]) ** 2)
@@ -337,8 +343,8 @@ class ObjectSearchEnv(EpisodeLifecycle, LastFrameRendering, gym.Env):
     def _observe(self):
         frame = {}
         if self.camera:
-            self._camera.set_pose(*self.camera_eye_target())
-            f = self._camera.render(segmentation=self.segmentation)
+            self._backend.camera.set_pose(*self.camera_eye_target())
+            f = self._backend.camera.render(segmentation=self.segmentation)
             self._last_frame = f
             frame = f.observation()
         obs = {**frame, "base_pose": self._pose.copy(), "goal": self._goal_text()}

@@ -1,4 +1,5 @@
-"""``cf/SceneScan-v0``: a scripted camera trajectory over a scene, yielding posed RGB-D frames."""
+"""``cf/SceneScan-v0``: a scripted camera trajectory over a scene, yielding posed RGB-D frames
+(MuJoCo or PyBullet)."""
 
 from __future__ import annotations
 
@@ -10,8 +11,8 @@ from gymnasium import spaces
 from conceptfusion.errors import SimError, SimTypeError
 from sim_envs.envs.checks import EpisodeLifecycle, check_choice, check_fovy, check_image_size, check_int
 from sim_envs.envs.rendering import LastFrameRendering, check_render_mode, frame_spaces
-from sim_envs.mujoco.camera import MujocoRGBDCamera
-from sim_envs.mujoco.scene import build_mujoco, split_labels
+from sim_envs.envs.household_backends import HouseholdBackend, check_backend
+from sim_envs.mujoco.scene import split_labels
 from sim_envs.scenes.descriptions import answer_phrases
 from sim_envs.scenes.format import Scene
 from sim_envs.scenes.gen_tabletop import generate_tabletop
@@ -51,15 +52,21 @@ class SceneScanEnv(EpisodeLifecycle, LastFrameRendering, gym.Env):
     where nothing is hit), ``K`` (3, 3), ``cam_to_world`` (4, 4) OpenCV convention,
     ``frame`` index.
 
+    **Simulators**: ``backend="mujoco"`` (default) or ``"pybullet"`` renders the same scene with
+    the same camera conventions and labels (:mod:`sim_envs.envs.household_backends`); the
+    trajectory, the scene graph's relations and the ids are the same.
+
     Input checks (:mod:`sim_envs.envs.checks`): ``reset`` takes no options (``None`` or ``{}``);
     ``step`` refuses any action but 0 and, once the last frame was returned, every call until
     ``reset`` (:class:`~conceptfusion.errors.EnvStateError`). Constructor arguments are
     checked: ``num_frames`` an int >= 1, ``width``/``height`` ints in [1, 8192], ``fovy_deg``
-    in (0, 180), ``kind`` a key of :data:`GENERATORS`, ``scene`` ``None`` or a ``Scene``.
+    in (0, 180), ``kind`` a key of :data:`GENERATORS`, ``scene`` ``None`` or a ``Scene``,
+    ``backend`` a key of :data:`~sim_envs.envs.household_backends.HOUSEHOLD_BACKENDS`.
     """
 
     metadata = {"render_modes": ["rgb_array"], "render_fps": 10}
     env_name = "SceneScan"
+    _renderer_attr = "_backend"  # close() releases the simulation and its camera
 
     def __init__(
         self,
@@ -71,8 +78,10 @@ class SceneScanEnv(EpisodeLifecycle, LastFrameRendering, gym.Env):
         scene: Scene | None = None,
         kind: str = "tabletop",
         render_mode: str | None = None,
+        backend: str = "mujoco",
     ) -> None:
         where = self.env_name
+        self.backend = check_backend(where, backend)
         num_frames = check_int(where, "num_frames", num_frames, minimum=1)
         width, height = check_image_size(where, width, height)
         fovy_deg = check_fovy(where, fovy_deg)
@@ -89,8 +98,7 @@ class SceneScanEnv(EpisodeLifecycle, LastFrameRendering, gym.Env):
                 "frame": spaces.Discrete(num_frames),
             }
         )
-        self._sim = None
-        self._camera: MujocoRGBDCamera | None = None
+        self._backend: HouseholdBackend | None = None
         self._traj: list[tuple] = []
         self._object_phrases: list[list[str]] = []
         self._k = 0
@@ -100,12 +108,10 @@ class SceneScanEnv(EpisodeLifecycle, LastFrameRendering, gym.Env):
         seed, _ = self._begin_reset(seed, options)
         super().reset(seed=seed)
         scene = self._fixed_scene or GENERATORS[self.kind](int(self.np_random.integers(0, 2**31 - 1)))
-        if self._camera is not None:
-            self._camera.close()
-        self._sim = build_mujoco(scene)
-        self._camera = MujocoRGBDCamera(
-            self._sim.model, self._sim.data, self.width, self.height, fovy_deg=self.fovy_deg, geom_object=self._sim.geom_labels()
-        )
+        if self._backend is not None:
+            self._backend.close()
+            self._backend = None
+        self._backend = HouseholdBackend(self.backend, scene, camera=(self.width, self.height, self.fovy_deg), labels="objects+furniture")
         self._traj = scan_trajectory(scene, self.num_frames)
         self._object_phrases = [answer_phrases(o) for o in scene.objects]
         self._k = 0
@@ -125,11 +131,11 @@ class SceneScanEnv(EpisodeLifecycle, LastFrameRendering, gym.Env):
 
     def _observe(self):
         eye, target = self._traj[self._k]
-        self._camera.set_pose(eye, target)
-        f = self._camera.render()
+        self._backend.camera.set_pose(eye, target)
+        f = self._backend.camera.render()
         self._last_frame = f
         obs = {**f.observation(), "frame": self._k}
-        scene = self._sim.scene
+        scene = self._backend.sim.scene
         seg, seg_furniture = split_labels(f.segmentation, len(scene.objects))
         info = {
             "scene_id": scene.id,
@@ -139,6 +145,6 @@ class SceneScanEnv(EpisodeLifecycle, LastFrameRendering, gym.Env):
             "object_names": [o.name for o in scene.objects],
             "object_phrases": [list(p) for p in self._object_phrases],
             "furniture_ids": [p.id for p in scene.furniture],
-            "scene_graph": scene_graph(self._sim),
+            "scene_graph": scene_graph(self._backend.sim),
         }
         return obs, info

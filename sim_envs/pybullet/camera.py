@@ -34,6 +34,51 @@ RENDERERS = ("auto", "tiny", "egl")
 
 _log = logging.getLogger(__name__)
 _EGL_PLUGINS: dict[int, int] = {}
+_WARM: set[int] = set()  # clients whose first images were rendered (PyBulletRGBDCamera.warm_up)
+_EGL_CONTEXTS: dict[int, tuple] = {}  # client -> (display, draw, read, context) its plugin made current
+
+
+class _Egl:
+    """The few EGL calls that keep the plugin's context current (ctypes on ``libEGL.so.1``).
+
+    The plugin makes its GL context current once, when it loads, and draws into whatever context
+    is current at each image. Anything else that renders with EGL in the thread (a MuJoCo camera)
+    makes its own context current, and the plugin then draws nothing (every pixel empty). The
+    camera therefore puts the plugin's context back before each image and restores the previous
+    one after it.
+    """
+
+    _lib = None
+
+    @classmethod
+    def lib(cls):
+        if cls._lib is None:
+            import ctypes
+
+            lib = ctypes.CDLL("libEGL.so.1")
+            for name in ("eglGetCurrentDisplay", "eglGetCurrentContext", "eglGetCurrentSurface"):
+                getattr(lib, name).restype = ctypes.c_void_p
+            lib.eglGetCurrentSurface.argtypes = [ctypes.c_int]
+            lib.eglMakeCurrent.argtypes = [ctypes.c_void_p] * 4
+            lib.eglMakeCurrent.restype = ctypes.c_uint
+            cls._lib = lib
+        return cls._lib
+
+    @classmethod
+    def current(cls) -> tuple:
+        lib = cls.lib()
+        return (lib.eglGetCurrentDisplay(), lib.eglGetCurrentSurface(0x3059), lib.eglGetCurrentSurface(0x305A), lib.eglGetCurrentContext())
+
+    @classmethod
+    def make_current(cls, state: tuple) -> None:
+        if state[0] is None:  # nothing was current: release
+            lib = cls.lib()
+            display = lib.eglGetCurrentDisplay()
+            if display:
+                lib.eglMakeCurrent(display, None, None, None)
+            return
+        if not cls.lib().eglMakeCurrent(*state):
+            raise RuntimeError("PyBullet EGL renderer: eglMakeCurrent failed to restore a GL context")
 
 
 def pybullet_camera_pose(view_matrix_16) -> np.ndarray:
@@ -63,6 +108,11 @@ def load_egl_plugin(client: int) -> bool:
         plugin = p.loadPlugin(spec.origin, "_eglRendererPlugin", physicsClientId=client)
     if plugin < 0:
         _log.info("PyBullet EGL renderer plugin did not load; using the tiny renderer")
+    else:
+        try:
+            _EGL_CONTEXTS[client] = _Egl.current()
+        except OSError:  # no libEGL to call: the plugin's context stays as it is
+            pass
     _EGL_PLUGINS[client] = plugin
     return plugin >= 0
 
@@ -71,6 +121,8 @@ def forget_client(client: int) -> None:
     """Drop what is remembered about ``client``'s plugin; call it when disconnecting the client
     (PyBullet reuses client ids)."""
     _EGL_PLUGINS.pop(client, None)
+    _EGL_CONTEXTS.pop(client, None)
+    _WARM.discard(client)
 
 
 class PyBulletRGBDCamera:
@@ -169,10 +221,18 @@ class PyBulletRGBDCamera:
         if self._view is None:
             raise RuntimeError("render: call set_pose(eye, target) first")
         flags = 0 if segmentation else p.ER_NO_SEGMENTATION_MASK
-        _, _, rgba, zbuf, seg = p.getCameraImage(
-            self.width, self.height, self._view, self._proj, renderer=self._gl_flag, flags=flags,
-            physicsClientId=self.client,
-        )
+        own = _EGL_CONTEXTS.get(self.client) if self.renderer == "egl" else None
+        previous = _Egl.current() if own is not None else None
+        if own is not None and previous != own:
+            _Egl.make_current(own)
+        try:
+            _, _, rgba, zbuf, seg = p.getCameraImage(
+                self.width, self.height, self._view, self._proj, renderer=self._gl_flag, flags=flags,
+                physicsClientId=self.client,
+            )
+        finally:
+            if own is not None and previous != own:
+                _Egl.make_current(previous)
         rgb = np.asarray(rgba, np.uint8).reshape(self.height, self.width, 4)[..., :3].copy()
         zb = np.asarray(zbuf, np.float64).reshape(self.height, self.width)
         depth = opengl_depth_to_metric(zb, self.near, self.far)
@@ -185,6 +245,24 @@ class PyBulletRGBDCamera:
         else:
             labels = np.full((self.height, self.width), -1, np.int32)
         return RGBDFrame(rgb=rgb, depth=depth, K=self.K.copy(), cam_to_world=pybullet_camera_pose(self._view), segmentation=labels)
+
+    def warm_up(self) -> None:
+        """Render and drop the client's first images. The EGL plugin shades the first two images
+        of a client differently from every later one (measured: colours up to 33 levels apart,
+        depth and labels the same), so without this a seeded reset would not repeat its first
+        observation. Keeps the current pose."""
+        import pybullet as p
+
+        if self.renderer != "egl" or self.client in _WARM:
+            return
+        view = self._view
+        self._view = p.computeViewMatrix([0.0, 0.0, 1.0], [1.0, 0.0, 1.0], [0.0, 0.0, 1.0])
+        try:
+            for _ in range(2):
+                self.render(segmentation=False)
+        finally:
+            self._view = view
+        _WARM.add(self.client)
 
     def close(self) -> None:
         """Nothing to release (the client owns the renderer); present for symmetry."""

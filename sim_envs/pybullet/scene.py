@@ -12,7 +12,7 @@ from __future__ import annotations
 
 import math
 import xml.etree.ElementTree as ET
-from dataclasses import dataclass
+from dataclasses import dataclass, field
 
 import numpy as np
 
@@ -20,10 +20,11 @@ from conceptfusion.io_utils import atomic_write_bytes
 from sim_envs.assets.objects import COLORS, get_asset
 from sim_envs.assets.meshes import cache_dir, mesh_texture, normalized_mesh
 from sim_envs.assets.library.catalogue import is_library_asset
-from sim_envs.assets.library.urdf import load_instance
+from sim_envs.assets.library.urdf import instance_urdf, load_instance
+from conceptfusion.errors import SceneFormatError
 from sim_envs.scenes.format import Scene, SceneObject
 
-__all__ = ["PyBulletScene", "build_pybullet", "texture_png", "OBJECT_FRICTION"]
+__all__ = ["PyBulletScene", "build_pybullet", "texture_png", "mjcf_shapes", "primitive_shapes", "compound_shapes", "OBJECT_FRICTION"]
 
 OBJECT_FRICTION = 0.5
 """Lateral friction of objects and table top (a box pushed over wood)."""
@@ -46,6 +47,10 @@ class PyBulletScene:
     table_body: int | None
     line_body: int | None
     floor_body: int
+    body_furniture: dict[int, int] = field(default_factory=dict)
+    """Body id -> index into ``scene.furniture`` (household scenes; a piece may have several bodies)."""
+    furniture_shapes: list = field(default_factory=list)
+    """Per piece of furniture, its shapes in the piece's frame (household scenes)."""
 
     def body_lut(self, n_bodies: int | None = None) -> np.ndarray:
         """(B,) int32 lookup from body id to object index, -1 elsewhere."""
@@ -56,6 +61,45 @@ class PyBulletScene:
         for b, i in self.body_object.items():
             lut[b] = i
         return lut
+
+    def body_labels(self) -> np.ndarray:
+        """(B,) int32 lookup for one segmentation pass, as MuJoCo's ``geom_labels``: object ``i``
+        -> ``i``, furniture ``j`` -> ``num_objects + j``, anything else -1 (undo with
+        :func:`sim_envs.mujoco.scene.split_labels`)."""
+        lut = self.body_lut(max(max(self.body_furniture, default=-1) + 1, len(self.body_object)))
+        n = len(self.scene.objects)
+        for b, j in self.body_furniture.items():
+            lut[b] = n + j
+        return lut
+
+    def object_aabbs(self) -> np.ndarray:
+        """World axis-aligned box around each object's size box in its current pose.
+
+        Shape:
+            returns (num_objects, 2, 3): ``[i, 0]`` lower corner, ``[i, 1]`` upper corner.
+        """
+        import pybullet as p
+
+        out = np.empty((len(self.scene.objects), 2, 3))
+        for i, (o, b) in enumerate(zip(self.scene.objects, self.object_body)):
+            com_pos, com_orn = p.getBasePositionAndOrientation(int(b), physicsClientId=self.client)
+            info = p.getDynamicsInfo(int(b), -1, physicsClientId=self.client)
+            pos, orn = p.multiplyTransforms(com_pos, com_orn, *p.invertTransform(info[3], info[4]))
+            sx, sy, sz = o.size
+            corners = np.array([[x, y, z] for x in (-sx / 2, sx / 2) for y in (-sy / 2, sy / 2) for z in (0.0, sz)])
+            world = corners @ np.asarray(p.getMatrixFromQuaternion(orn)).reshape(3, 3).T + pos
+            out[i, 0], out[i, 1] = world.min(0), world.max(0)
+        return out
+
+    def furniture_aabbs(self) -> np.ndarray:
+        """World axis-aligned box of every piece of furniture (static: from its shapes and pose).
+
+        Shape:
+            returns (num_furniture, 2, 3).
+        """
+        from sim_envs.pybullet.household import furniture_aabbs
+
+        return furniture_aabbs(self.scene, self.furniture_shapes)
 
 
 def texture_png(name: str, rgb: tuple[float, float, float], pattern: str = "gradient", size: int = 64) -> str:
@@ -104,21 +148,26 @@ def _quat_z_to(d: np.ndarray) -> list[float]:
     return [*axis, math.cos(angle / 2)]
 
 
-def primitive_shapes(asset: str, size) -> list[dict]:
-    """The MuJoCo primitive geoms of a procedural asset as PyBullet shape arguments.
+def mjcf_shapes(geoms_xml: str, where: str) -> list[dict]:
+    """MuJoCo primitive geoms (MJCF text) as PyBullet shape arguments.
 
     Returns one dict per geom with ``shapeType`` and the size keyword (``halfExtents``,
-    ``radius``, ``length``), plus ``pos`` (3,) and ``quat`` (xyzw) in the object frame.
+    ``radius``, ``length``), ``pos`` (3,) and ``quat`` (xyzw) in the geoms' frame, and
+    ``material`` (the geom's material name, or None). A geom type PyBullet has no counterpart for,
+    or a shape without volume (a zero or negative size), raises ``ValueError`` naming ``where``.
     """
     import pybullet as p
 
-    root = ET.fromstring(f"<r>{get_asset(asset).geoms(tuple(size), 'm')}</r>")
+    root = ET.fromstring(f"<r>{geoms_xml}</r>")
     shapes = []
-    for g in root:
+    for k, g in enumerate(root):
         kind = g.get("type", "sphere")
         sz = _floats(g.get("size"), 3, [0.0])
         pos = _floats(g.get("pos"), 3, [0.0, 0.0, 0.0])
         quat = [0.0, 0.0, 0.0, 1.0]
+        turned = [a for a in ("euler", "quat", "axisangle", "xyaxes", "zaxis") if g.get(a) is not None]
+        if turned:
+            raise ValueError(f"{where}: geom {k}: orientation attribute {turned[0]!r} is not read; use fromto or an unrotated geom")
         if g.get("fromto") is not None:
             ft = _floats(g.get("fromto"), 6, [0.0] * 6)
             a, b = ft[:3], ft[3:]
@@ -127,19 +176,34 @@ def primitive_shapes(asset: str, size) -> list[dict]:
             half = length / 2
         else:
             half = float(sz[1]) if len(sz) > 1 else 0.0
+        mat = g.get("material")
         if kind == "box":
-            shapes.append({"shapeType": p.GEOM_BOX, "halfExtents": list(sz[:3]), "pos": pos, "quat": quat})
+            shape = {"shapeType": p.GEOM_BOX, "halfExtents": list(sz[:3]), "pos": pos, "quat": quat, "material": mat}
+            dims = list(sz[:3]) if len(sz) >= 3 else [0.0]
         elif kind == "sphere":
-            shapes.append({"shapeType": p.GEOM_SPHERE, "radius": float(sz[0]), "pos": pos, "quat": quat})
+            shape = {"shapeType": p.GEOM_SPHERE, "radius": float(sz[0]), "pos": pos, "quat": quat, "material": mat}
+            dims = [float(sz[0])]
         elif kind in ("cylinder", "capsule"):
             t = p.GEOM_CYLINDER if kind == "cylinder" else p.GEOM_CAPSULE
-            shapes.append({"shapeType": t, "radius": float(sz[0]), "length": 2 * half, "pos": pos, "quat": quat})
+            shape = {"shapeType": t, "radius": float(sz[0]), "length": 2 * half, "pos": pos, "quat": quat, "material": mat}
+            dims = [float(sz[0])] + ([2 * half] if kind == "cylinder" else [])
         else:
-            raise ValueError(f"asset {asset!r}: geom type {kind!r} has no PyBullet counterpart")
+            raise ValueError(f"{where}: geom {k} type {kind!r} has no PyBullet counterpart (expected box, sphere, cylinder or capsule)")
+        if not all(np.isfinite(d) and d > 0 for d in dims):
+            raise ValueError(f"{where}: geom {k} ({kind}) has no volume: size {g.get('size') or g.get('fromto')!r}; "
+                             "expected positive sizes")
+        shapes.append(shape)
     return shapes
 
 
-def _compound(shapes: list[dict], client: int) -> tuple[int, int]:
+def primitive_shapes(asset: str, size) -> list[dict]:
+    """The MuJoCo primitive geoms of a procedural asset as PyBullet shape arguments
+    (:func:`mjcf_shapes`), in the object frame."""
+    return mjcf_shapes(get_asset(asset).geoms(tuple(size), "m"), f"asset {asset!r}")
+
+
+def compound_shapes(shapes: list[dict], client: int) -> tuple[int, int]:
+    """Collision and visual shape ids of a compound of :func:`mjcf_shapes`-style shape dicts."""
     import pybullet as p
 
     types = [s["shapeType"] for s in shapes]
@@ -162,12 +226,15 @@ def _compound(shapes: list[dict], client: int) -> tuple[int, int]:
     return col, vis
 
 
-def _object_body(o: SceneObject, client: int) -> int:
+def _object_body(o: SceneObject, client: int, where: str) -> int:
     import pybullet as p
 
     if is_library_asset(o.asset):  # object library instance: its URDF (textured mesh, convex pieces)
         x, y, z = o.position
-        body = load_instance(o.asset, client, (x, y, z + 0.001), o.yaw, o.size)
+        try:
+            body = load_instance(o.asset, client, (x, y, z + 0.001), o.yaw, o.size)
+        except p.error as exc:  # checked files should load; name what did not
+            raise SceneFormatError(f"{where} ({o.asset!r}): PyBullet could not load {instance_urdf(o.asset, o.size)}: {exc}") from None
         p.changeDynamics(
             body, -1, lateralFriction=OBJECT_FRICTION, spinningFriction=0.001, rollingFriction=0.0001,
             linearDamping=0.04, angularDamping=0.04, physicsClientId=client,
@@ -181,7 +248,7 @@ def _object_body(o: SceneObject, client: int) -> int:
         vis = p.createVisualShape(p.GEOM_MESH, fileName=path, meshScale=size, physicsClientId=client)
         tex_path = mesh_texture(asset.mesh)
     else:
-        col, vis = _compound(primitive_shapes(o.asset, size), client)
+        col, vis = compound_shapes(primitive_shapes(o.asset, size), client)
         tex_path = None
     if tex_path is None:
         tex_path = texture_png(f"paint_{o.color}", COLORS[o.color], "gradient")
@@ -205,27 +272,42 @@ def _object_body(o: SceneObject, client: int) -> int:
 def _static_body(shapes: list[dict], texture: str, client: int, *, collide: bool = True) -> int:
     import pybullet as p
 
-    col, vis = _compound(shapes, client)
+    col, vis = compound_shapes(shapes, client)
     body = p.createMultiBody(0.0, col if collide else -1, vis, physicsClientId=client)
     p.changeVisualShape(body, -1, textureUniqueId=p.loadTexture(texture, physicsClientId=client), physicsClientId=client)
     p.changeDynamics(body, -1, lateralFriction=OBJECT_FRICTION, physicsClientId=client)
     return body
 
 
-def build_pybullet(scene: Scene, client: int) -> PyBulletScene:
+def build_pybullet(scene: Scene, client: int, *, source: str | None = None) -> PyBulletScene:
     """Load ``scene`` into the PyBullet client ``client`` (gravity -9.81 z).
 
-    Floor (checker), table top with four legs (wood), the dividing line (visual only, no
-    collision) and one dynamic body per object, placed 1 mm above its resting height.
+    A tabletop: floor (checker), table top with four legs (wood), the dividing line (visual only,
+    no collision). A household: ground, room floors, walls and furniture
+    (:func:`sim_envs.pybullet.household.build_household`). Then one dynamic body per object,
+    placed 1 mm above its resting height.
+
+    Every asset is checked first (:func:`~sim_envs.pybullet.asset_checks.check_pybullet_assets`):
+    a scene PyBullet cannot build raises :class:`~conceptfusion.errors.SceneFormatError` naming
+    ``source`` (default: the scene id), the field and the file, with nothing loaded.
     """
     import pybullet as p
 
+    from sim_envs.pybullet.asset_checks import check_pybullet_assets
+    from sim_envs.pybullet.household import build_household
+
+    furniture = check_pybullet_assets(scene, source)
     p.setGravity(0.0, 0.0, -9.81, physicsClientId=client)
     box = p.GEOM_BOX
-    floor = _static_body(
-        [{"shapeType": box, "halfExtents": [5, 5, 0.05], "pos": [0, 0, -0.05], "quat": [0, 0, 0, 1]}],
-        texture_png("floor", (0.55, 0.55, 0.58), "checker", 128), client,
-    )
+    body_furniture: dict[int, int] = {}
+    if scene.is_household:
+        house = build_household(scene, client, furniture)
+        floor, body_furniture = house.static[0], house.body_furniture
+    else:
+        floor = _static_body(
+            [{"shapeType": box, "halfExtents": [5, 5, 0.05], "pos": [0, 0, -0.05], "quat": [0, 0, 0, 1]}],
+            texture_png("floor", (0.55, 0.55, 0.58), "checker", 128), client,
+        )
     table_body = line_body = None
     if scene.table is not None:
         t = scene.table
@@ -252,8 +334,10 @@ def build_pybullet(scene: Scene, client: int) -> PyBulletScene:
                 line_body, [(x0 + x1) / 2, (y0 + y1) / 2, t.top_z + 0.0005],
                 p.getQuaternionFromEuler([0, 0, yaw]), physicsClientId=client,
             )
-    bodies = np.array([_object_body(o, client) for o in scene.objects], np.int64)
+    bodies = np.array([_object_body(o, client, f"{source or f'scene {scene.id!r}'}: objects[{i}].asset") for i, o in enumerate(scene.objects)],
+                      np.int64)
     return PyBulletScene(
         scene=scene, client=client, object_body=bodies, body_object={int(b): i for i, b in enumerate(bodies)},
-        table_body=table_body, line_body=line_body, floor_body=floor,
+        table_body=table_body, line_body=line_body, floor_body=floor, body_furniture=body_furniture,
+        furniture_shapes=furniture,
     )

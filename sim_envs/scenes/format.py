@@ -47,6 +47,7 @@ from sim_envs.scenes.household_format import (
     parse_text, parse_vector, parse_walls,
 )
 from sim_envs.scenes.overlaps import overlapping_pairs
+from sim_envs.scenes.household_shapes import WALL_OVERLAP_TOL, furniture_in_walls
 
 __all__ = ["SceneObject", "Table", "Scene", "Room", "Wall", "Furniture", "load_scene", "save_scene", "scene_from_json", "FORMAT", "VERSION"]
 
@@ -244,7 +245,8 @@ def scene_from_json(d: dict, *, source: str = "scene", overlap_tol: float = 0.00
     (a ``ValueError``) whose message starts with ``source`` and names the field
     (``objects[2].yaw``). Objects with a ``support`` must rest on it (within ``support_tol``);
     objects without one, in a scene with a table, must stand on the table top (centre over it,
-    base within ``support_tol`` of its height).
+    base within ``support_tol`` of its height). No piece of furniture may reach into a wall
+    (:func:`~sim_envs.scenes.household_shapes.furniture_in_walls`).
     """
     if not isinstance(d, dict) or d.get("format") != FORMAT:
         got = d.get("format") if isinstance(d, dict) else type(d).__name__
@@ -280,6 +282,15 @@ def scene_from_json(d: dict, *, source: str = "scene", overlap_tol: float = 0.00
             if it.id in ids:
                 raise SceneFormatError(f"{source}: duplicate id {it.id!r} ({kind_name}); ids must be unique across rooms, walls, furniture and objects")
             ids.add(it.id)
+    in_walls = furniture_in_walls(walls, furniture)
+    if in_walls:
+        j, wall_id, depth = in_walls[0]
+        f = furniture[j]
+        more = f" ({len(in_walls) - 1} more piece(s) in walls)" if len(in_walls) > 1 else ""
+        raise SceneFormatError(
+            f"{source}: furniture[{j}] ({f.id!r}, {f.name}): its footprint reaches {depth:.3f} m into wall {wall_id!r}; "
+            f"expected at most {WALL_OVERLAP_TOL} m (move it out of the wall){more}"
+        )
     check_supports(objects, furniture, source, tol=support_tol)
     if table is not None:
         _check_on_table(objects, table, source, support_tol)

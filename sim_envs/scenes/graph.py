@@ -13,20 +13,27 @@ _SIGNS = np.array([[sx, sy, sz] for sx in (-1, 1) for sy in (-1, 1) for sz in (-
 
 
 def object_aabbs(sim) -> np.ndarray:
-    """World axis-aligned box of every scene object, from its geoms' boxes in the current state.
+    """World axis-aligned box of every scene object in the current state: from its geoms' boxes
+    for a :class:`~sim_envs.mujoco.scene.MujocoScene`; a simulation that computes its own (a
+    :class:`~sim_envs.pybullet.scene.PyBulletScene`: the size box in the object's pose) is asked.
 
     Shape:
         returns (num_objects, 2, 3): ``[i, 0]`` lower corner, ``[i, 1]`` upper corner.
     """
+    if hasattr(sim, "object_aabbs"):
+        return sim.object_aabbs()
     return _group_aabbs(sim, sim.geom_object, len(sim.scene.objects))
 
 
 def furniture_aabbs(sim) -> np.ndarray:
-    """World axis-aligned box of every piece of furniture (household scenes).
+    """World axis-aligned box of every piece of furniture (household scenes), as
+    :func:`object_aabbs`.
 
     Shape:
         returns (num_furniture, 2, 3): ``[j, 0]`` lower corner, ``[j, 1]`` upper corner.
     """
+    if hasattr(sim, "furniture_aabbs"):
+        return sim.furniture_aabbs()
     return _group_aabbs(sim, sim.geom_furniture, len(sim.scene.furniture))
 
 
