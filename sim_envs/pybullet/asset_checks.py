@@ -102,7 +102,7 @@ def check_pybullet_assets(scene, source: str | None = None) -> list[list[dict]]:
     or empty, a collision piece without volume, a primitive with a zero size.
     """
     from sim_envs.pybullet.household import furniture_shapes
-    from sim_envs.pybullet.scene import primitive_shapes
+    from sim_envs.pybullet.shapes import primitive_shapes
 
     where = source or f"scene {scene.id!r}"
     for i, o in enumerate(scene.objects):

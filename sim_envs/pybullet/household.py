@@ -19,7 +19,7 @@ import math
 import numpy as np
 
 from sim_envs.assets.furniture import FURNITURE, MATERIALS, material_look, material_name
-from sim_envs.pybullet.scene import compound_shapes, mjcf_shapes, texture_png
+from sim_envs.pybullet.shapes import compound_shapes, mjcf_shapes, texture_png
 from sim_envs.scenes.household_shapes import ground_half, wall_boxes
 
 __all__ = ["HouseholdBodies", "build_household", "furniture_shapes"]

@@ -227,7 +227,7 @@ def test_search_refuses_a_broken_mesh_at_reset_before_the_episode(monkeypatch, t
 
 
 def test_a_primitive_without_volume_is_refused_naming_where():
-    from sim_envs.pybullet.scene import mjcf_shapes
+    from sim_envs.pybullet.shapes import mjcf_shapes
 
     with pytest.raises(ValueError, match=r"furniture\[2\] \('f2'\): geom 1 \(box\) has no volume: size '0.2 0 0.1'"):
         mjcf_shapes('<geom type="box" size="0.1 0.1 0.1"/><geom type="box" size="0.2 0 0.1"/>', "furniture[2] ('f2')")

@@ -7,7 +7,8 @@ import pytest
 
 from conceptfusion.cameras import backproject, transform_points
 from sim_envs.pybullet.camera import PyBulletRGBDCamera, forget_client
-from sim_envs.pybullet.scene import build_pybullet, primitive_shapes, texture_png
+from sim_envs.pybullet.scene import build_pybullet
+from sim_envs.pybullet.shapes import primitive_shapes, texture_png
 from sim_envs.scenes.format import Scene, SceneObject, Table
 
 p = pytest.importorskip("pybullet")
