@@ -105,12 +105,9 @@ class HouseholdBackend:
             self.camera.close()
             self.camera = None
         if self._client is not None:
-            import pybullet as p
-
-            from sim_envs.pybullet.camera import forget_client
+            from sim_envs.pybullet.camera import disconnect_quietly
 
             try:
-                p.disconnect(physicsClientId=self._client)
+                disconnect_quietly(self._client)
             finally:
-                forget_client(self._client)
                 self._client = None

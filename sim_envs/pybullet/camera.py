@@ -18,7 +18,10 @@ camera-to-world pose, metric depth along the optical axis (``inf`` where nothing
 
 from __future__ import annotations
 
+import contextlib
 import logging
+import os
+import sys
 
 import numpy as np
 
@@ -27,7 +30,7 @@ from conceptfusion.errors import ShapeError
 from conceptfusion.frames import RGBDFrame
 from sim_envs.cameras import opengl_depth_to_metric, opengl_to_opencv_pose
 
-__all__ = ["PyBulletRGBDCamera", "load_egl_plugin", "forget_client", "pybullet_camera_pose", "RENDERERS"]
+__all__ = ["PyBulletRGBDCamera", "load_egl_plugin", "forget_client", "disconnect_quietly", "native_stdout_quiet", "pybullet_camera_pose", "RENDERERS"]
 
 RENDERERS = ("auto", "tiny", "egl")
 """Renderer names :class:`PyBulletRGBDCamera` accepts."""
@@ -35,6 +38,7 @@ RENDERERS = ("auto", "tiny", "egl")
 _log = logging.getLogger(__name__)
 _EGL_PLUGINS: dict[int, int] = {}
 _WARM: set[int] = set()  # clients whose first images were rendered (PyBulletRGBDCamera.warm_up)
+_RENDERED: dict[int, int] = {}  # client -> images rendered (the EGL plugin prints its GL vendor on the first two)
 _EGL_CONTEXTS: dict[int, tuple] = {}  # client -> (display, draw, read, context) its plugin made current
 
 
@@ -94,6 +98,50 @@ def pybullet_camera_pose(view_matrix_16) -> np.ndarray:
     return opengl_to_opencv_pose(np.linalg.inv(V))
 
 
+@contextlib.contextmanager
+def native_stdout_quiet():
+    """Within the block, what native code writes to the process's standard output (file
+    descriptor 1) goes nowhere: PyBullet's EGL plugin prints its GL vendor strings on loading and
+    "Destroy EGL OpenGL window." on unloading, which would interleave with a run's output. Python's
+    own ``sys.stdout`` is flushed first, so nothing of it is lost."""
+    try:
+        sys.stdout.flush()
+        saved = os.dup(1)
+    except (OSError, ValueError, AttributeError):  # no usable fd 1 (an embedding host): leave it alone
+        yield
+        return
+    try:
+        with open(os.devnull, "wb") as null:
+            os.dup2(null.fileno(), 1)
+        yield
+    finally:
+        _flush_c_stdio()  # what the native code printf-ed sits in C's buffer: empty it into /dev/null
+        os.dup2(saved, 1)
+        os.close(saved)
+
+
+def _flush_c_stdio() -> None:
+    """``fflush(NULL)`` of the C library (best effort: a platform without it keeps its buffer)."""
+    try:
+        import ctypes
+
+        ctypes.CDLL(None).fflush(None)
+    except (OSError, AttributeError, TypeError):
+        pass
+
+
+def disconnect_quietly(client: int) -> None:
+    """``p.disconnect(client)`` without the EGL plugin's farewell on standard output, and
+    :func:`forget_client` (PyBullet reuses client ids)."""
+    import pybullet as p
+
+    try:
+        with native_stdout_quiet():
+            p.disconnect(physicsClientId=client)
+    finally:
+        forget_client(client)
+
+
 def load_egl_plugin(client: int) -> bool:
     """Load PyBullet's EGL renderer plugin into ``client`` once; True when it loaded."""
     if client in _EGL_PLUGINS:
@@ -105,7 +153,8 @@ def load_egl_plugin(client: int) -> bool:
     plugin = -1
     spec = importlib.util.find_spec("eglRenderer")
     if spec is not None and spec.origin:
-        plugin = p.loadPlugin(spec.origin, "_eglRendererPlugin", physicsClientId=client)
+        with native_stdout_quiet():  # the plugin prints its GL vendor strings
+            plugin = p.loadPlugin(spec.origin, "_eglRendererPlugin", physicsClientId=client)
     if plugin < 0:
         _log.info("PyBullet EGL renderer plugin did not load; using the tiny renderer")
     else:
@@ -123,6 +172,7 @@ def forget_client(client: int) -> None:
     _EGL_PLUGINS.pop(client, None)
     _EGL_CONTEXTS.pop(client, None)
     _WARM.discard(client)
+    _RENDERED.pop(client, None)
 
 
 class PyBulletRGBDCamera:
@@ -225,11 +275,14 @@ class PyBulletRGBDCamera:
         previous = _Egl.current() if own is not None else None
         if own is not None and previous != own:
             _Egl.make_current(own)
+        first = self.renderer == "egl" and _RENDERED.get(self.client, 0) < 2
         try:
-            _, _, rgba, zbuf, seg = p.getCameraImage(
-                self.width, self.height, self._view, self._proj, renderer=self._gl_flag, flags=flags,
-                physicsClientId=self.client,
-            )
+            with native_stdout_quiet() if first else contextlib.nullcontext():  # the plugin's GL vendor strings
+                _, _, rgba, zbuf, seg = p.getCameraImage(
+                    self.width, self.height, self._view, self._proj, renderer=self._gl_flag, flags=flags,
+                    physicsClientId=self.client,
+                )
+            _RENDERED[self.client] = _RENDERED.get(self.client, 0) + 1
         finally:
             if own is not None and previous != own:
                 _Egl.make_current(previous)

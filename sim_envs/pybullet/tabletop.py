@@ -30,7 +30,7 @@ import numpy as np
 
 from conceptfusion.frames import RGBDFrame
 from sim_envs.pybullet.panda_kinematics import ARM_JOINTS, BASE_YAW, FINGER_JOINTS, HOME_JOINTS, PANDA_URDF, TIP_LINK, PandaKinematics, load_panda
-from sim_envs.pybullet.camera import RENDERERS, PyBulletRGBDCamera, forget_client, load_egl_plugin
+from sim_envs.pybullet.camera import RENDERERS, PyBulletRGBDCamera, disconnect_quietly, load_egl_plugin
 from sim_envs.pybullet.scene import build_pybullet
 from sim_envs.scenes.format import Scene
 from sim_envs.envs.tabletop_sim import PUSH_HEIGHT, PushOutcome
@@ -311,9 +311,8 @@ class PyBulletTabletop:
 
     def close(self) -> None:
         """Disconnect the simulation and the kinematics twin (idempotent)."""
-        forget_client(self.client)
         try:
-            self._p.disconnect(physicsClientId=self.client)
+            disconnect_quietly(self.client)
         except Exception:  # already disconnected
             pass
         self.kin.close()

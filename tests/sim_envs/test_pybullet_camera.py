@@ -4,6 +4,7 @@ from __future__ import annotations
 
 import numpy as np
 import pytest
+from pathlib import Path
 
 from conceptfusion.cameras import backproject, transform_points
 from sim_envs.pybullet.camera import PyBulletRGBDCamera, forget_client
@@ -140,3 +141,32 @@ def test_bad_arguments_are_named(loaded):
         cam.set_pose((0, 0, 1), (0, 0, 1))
     with pytest.raises(ValueError, match="pattern"):
         texture_png("x", (1, 0, 0), "stripes")
+
+
+def test_the_egl_plugin_prints_nothing_on_standard_output(tmp_path):
+    """PyBullet's EGL plugin prints its GL vendor on a client's first two images and a farewell
+    when the client goes; a run's output must not carry them (checked in a fresh process, at the
+    level of file descriptor 1, where the native code writes)."""
+    import subprocess
+    import sys
+
+    code = (
+        "import pybullet as p\n"
+        "from sim_envs.pybullet.camera import PyBulletRGBDCamera, disconnect_quietly, load_egl_plugin\n"
+        "c = p.connect(p.DIRECT)\n"
+        "if not load_egl_plugin(c):\n"
+        "    print('NO-EGL')\n"
+        "cam = PyBulletRGBDCamera(c, 64, 48, renderer='egl' if load_egl_plugin(c) else 'tiny')\n"
+        "cam.set_pose([1.0, 0.0, 1.0], [0.0, 0.0, 0.0])\n"
+        "for _ in range(3):\n"
+        "    cam.render(segmentation=False)\n"
+        "disconnect_quietly(c)\n"
+        "print('done')\n"
+    )
+    out = subprocess.run([sys.executable, "-c", code], capture_output=True, text=True, timeout=120,
+                         cwd=str(Path(__file__).resolve().parents[2]))
+    assert out.returncode == 0, out.stderr[-2000:]
+    lines = out.stdout.split()
+    if lines == ["NO-EGL", "done"]:
+        pytest.skip("PyBullet's EGL plugin does not load here: nothing to silence")
+    assert out.stdout == "done\n", out.stdout
