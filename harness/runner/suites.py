@@ -309,15 +309,6 @@ SUITES: dict[str, Suite] = {
             env_kwargs=dict(SEARCH_V2_ENV), encoder="embedded-v2",
             calibration_file=GATE_FOLDER / "search-calibration-v2.jsonl", **calibrated_bounds("regression-search-v2"),
         ),
-        Suite(
-            "regression-search-v2-pybullet", "episodes",
-            "the headline search pipeline gated in PyBullet: regression-search-v2's pinned searches, perception and agent "
-            "settings in PyBullet apartments, with bounds calibrated in PyBullet (CI, -m headline_gate)",
-            task="object_search", episodes_file=GATE_FOLDER / "search-episodes-v2.jsonl",
-            agents=("map-navigator", "twin-navigator", "random-walker", "oracle-searcher"),
-            env_kwargs={**SEARCH_V2_ENV, "backend": "pybullet"}, encoder="embedded-v2",
-            calibration_file=GATE_FOLDER / "search-calibration-v2.jsonl", **calibrated_bounds("regression-search-v2-pybullet"),
-        ),
     )
 }
 """Every suite by name."""
