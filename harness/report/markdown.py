@@ -48,7 +48,7 @@ from collections import Counter
 from pathlib import Path
 
 
-from conceptfusion.errors import MissingFileError
+from conceptfusion.errors import HarnessError, MissingFileError
 from conceptfusion.io_utils import atomic_write_bytes, atomic_write_text
 from harness.report import figures as report_figures
 from harness.report import plots as report_plots
@@ -396,6 +396,31 @@ def _path_figures(records, suite: str, w: _Writer) -> list:
     return report_figures.path_figures(records, suite, w)
 
 
+def _sim_to_sim_section(records) -> list:
+    """The same episodes in MuJoCo and PyBullet (a suite beside its ``-pybullet`` variant,
+    :mod:`harness.report.sim_to_sim`); empty when no suite ran in both."""
+    from harness.report.sim_to_sim import PYBULLET_SUFFIX, sim_to_sim
+
+    if not any(r["suite"].endswith(PYBULLET_SUFFIX) for r in records):
+        return []
+    try:
+        pairs = sim_to_sim(records)
+    except HarnessError:
+        return []
+    head = ("suite", "agent", "perception", "MuJoCo", "PyBullet", "PyBullet - MuJoCo [95% CI]", "McNemar p", "n")
+    rows = []
+    for s in pairs:
+        rates = [s.rate(k) for k in (s.mujoco, s.pybullet)]
+        rows.append((f"`{s.suite}`", s.agent, f"{s.encoder} (privileged)" if s.privileged else s.encoder,
+                     *(Cell(f"{k}/{s.n}", sort=r[0], interval=r) for k, r in zip((s.mujoco, s.pybullet), rates)),
+                     Cell(f"{s.diff:+.2f} [{s.ci[0]:+.2f}, {s.ci[1]:+.2f}]", sort=s.diff), Cell(f"{s.p:.2g}", sort=s.p),
+                     Cell(str(s.n), sort=s.n)))
+    return [Heading(2, "MuJoCo against PyBullet"),
+            Paragraph("The same episodes, agents and perception in both simulators (a suite beside its `-pybullet` "
+                      "variant), paired by episode: does a result survive a change of renderer and physics?"),
+            Table(head, rows, name="sim-to-sim")]
+
+
 def _heatmap_figures(items, w: _Writer) -> list:
     return report_figures.heatmap_figures(items, w)
 
@@ -457,6 +482,7 @@ def build_report(run_dirs_or_records, out_dir: str | os.PathLike, *,
             blocks += [Heading(3, "Episodes from above")] + path_blocks
         blocks += failure_section(run_items, suite, links)
         blocks.append(episode_table(run_items, suite, out, show_run=several_runs, links=links))
+    blocks += _sim_to_sim_section(records)
     blocks += _heatmap_figures(items, w)
     blocks += [Heading(2, "Skipped"), Bullets(tuple(w.skipped) or ("nothing",))]
     return ReportDocument(title=title, out_dir=out, blocks=blocks, figures=w.figures, items=run_items)
