@@ -51,7 +51,7 @@ def _sealed_section(records_file: Path) -> list[str]:
     return [
         "## The sealed test set",
         "",
-        f"Each map agent against its matched map-free twin on the sealed episodes (`scenes/sealed-v2/`), measured once"
+        "Each map agent against its matched map-free twin on the sealed episodes (`scenes/sealed-v2/`), measured once"
         + (f" at commit `{commit[:7]}`" if commit else "") + f"; {len(records)} records in "
         "`harness/data/sealed/records.jsonl`, recomputed for this page (`cfharness develop headline` wrote them).",
         "",
@@ -62,6 +62,18 @@ def _sealed_section(records_file: Path) -> list[str]:
 
 _FIGURE_SECTIONS = ("Query heatmaps",)
 """Report sections that hold figures only (with their captions): left out of the page."""
+
+
+def _sim_section() -> list[str]:
+    """The MuJoCo-against-PyBullet table from the kept records (:mod:`harness.report.sim_to_sim`), when there are any."""
+    from harness.report.sim_to_sim import RECORDS_FILE as SIM_RECORDS, read_records, sim_to_sim, sim_to_sim_table
+
+    if not SIM_RECORDS.is_file():
+        return []
+    return ["## MuJoCo against PyBullet", "",
+            "The same sealed searches, agents and perception in both simulators, paired by episode "
+            "(`cfharness develop sim-to-sim` kept the records in `harness/data/sim_to_sim/records.jsonl`):", "",
+            sim_to_sim_table(sim_to_sim(read_records(SIM_RECORDS))), ""]
 
 
 def _page_blocks(blocks: list) -> list:
@@ -109,7 +121,7 @@ def results_page(runs: list, *, records_file: str | os.PathLike = RECORDS_FILE,
     """
     run_ids = sorted({str(r.get("run_id")) for run in runs for r in load_results(Path(run) / "results.jsonl"
                                                                                if Path(run).is_dir() else run)})
-    parts = [_INTRO, *_sealed_section(Path(records_file))]
+    parts = [_INTRO, *_sealed_section(Path(records_file)), *_sim_section()]
     parts += [f"Run{'s' if len(run_ids) > 1 else ''} {', '.join(f'`{r}`' for r in run_ids)} "
               "(`cfharness run`, the default comparison: slices of the agent suites and the map suites):", ""]
     parts += _runs_section(list(runs), title)

@@ -50,3 +50,9 @@ def test_the_report_has_the_section_when_a_suite_ran_in_both(tmp_path):
     doc = build_report(_records(), tmp_path)
     tables = [b for b in doc.blocks if getattr(b, "name", "") == "sim-to-sim"]
     assert len(tables) == 1 and tables[0].rows[0][3].text == "8/12" and tables[0].rows[0][4].text == "7/12"
+def test_the_readme_table_is_recomputed_from_the_kept_records():
+    if not s2s.RECORDS_FILE.is_file():
+        pytest.fail(f"{s2s.RECORDS_FILE} is missing: cfharness develop sim-to-sim RUN... --write keeps it")
+    table = s2s.sim_to_sim_table(s2s.sim_to_sim(s2s.read_records()))
+    readme = (s2s.RECORDS_FILE.parents[3] / "README.md").read_text()
+    assert f"{s2s.README_START}\n{table}\n{s2s.README_END}" in readme
