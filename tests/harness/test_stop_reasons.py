@@ -237,6 +237,6 @@ def test_a_crashed_or_timed_out_episode_says_so(user_agents):
     job = _job("regression-search", "test-crash", _episode("regression-search"))
     rec = run_episode(job)
     assert rec["status"] == "failed" and "the agent fell over" in rec["error"]
-    assert rec["extras"] == {"goal": job.episode.instruction, "stop_reason": "error"}
+    assert rec["extras"] == {"goal": job.episode.instruction, "stop_reason": "error", "sim": "mujoco"}
     assert job.failure_record("timeout", "too slow", 1.0)["extras"]["stop_reason"] == "timeout"
     assert job.failure_record("failed", "worker died", 1.0)["extras"]["stop_reason"] == "error"
