@@ -7,7 +7,8 @@ ranked by ``success`` when its records have it, else by the first metric of its 
 
 Per suite (:func:`suite_answer`):
 
-- **best**: the (agent, encoder) group with the highest mean of the headline metric (higher is
+- **best**: the (agent, encoder) group with the highest mean of the headline metric (a tie goes
+  to a map agent: one with a matched twin, or whose records say it uses a map; higher is
   better), among the groups that read no ground truth; a group with ``extras.privileged`` is only
   best when every group is privileged, and is then marked. A privileged group that scores higher
   than the best is named in the card's note, marked, never ranked.
@@ -151,14 +152,16 @@ def suite_answer(records: list[dict], suite: str) -> SuiteAnswer | None:
         return None
     privileged = frozenset(group_key(r)[1:] for r in recs if (r.get("extras") or {}).get("privileged") is True)
     public = [g for g in stats if g not in privileged]
-    by_score = sorted(public or stats, key=lambda g: (-stats[g].mean, g))
+    pairs = _twin_pairs(recs, stats)
+    # a tie goes to a map agent (one with a twin, or that says it uses a map): the question is about the map
+    mapping = {m for m, _ in pairs} | {group_key(r)[1:] for r in recs if (r.get("extras") or {}).get("uses_map") is True}
+    by_score = sorted(public or stats, key=lambda g: (-stats[g].mean, g not in mapping, g))
     best = by_score[0]
     notes = [f"{_label(g, privileged)} scores {stats[g].mean:.2f}, not ranked: it reads ground truth a robot does not have"
              for g in sorted(stats, key=lambda g: -stats[g].mean) if public and g in privileged and stats[g].mean > stats[best].mean]
     kind = 2
     compared = baseline = None
     role = ""
-    pairs = _twin_pairs(recs, stats)
     fair = [p for p in pairs if not (set(p) & privileged)] or pairs
     if fair:
         holding = [p for p in fair if best in p]

@@ -116,3 +116,16 @@ def test_column_order_puts_the_headline_group_after_the_ungrouped_columns():
     assert metric_title("name_miou") == "name mIoU" and metric_title("success") == "success"
     with pytest.raises(TypeError, match="expected a non-empty string, got ''"):
         metric_label("")
+
+
+def test_a_tie_goes_to_the_map_agent():
+    """Every agent succeeding everywhere: the map agent is named best, not the alphabetically first
+    frame agent (the question is about the map)."""
+    recs = []
+    for i in range(10):
+        recs.append(_rec("rearrange-v2", "frame-pusher", i, {"success": True}, uses_map=False))
+        recs.append(_rec("rearrange-v2", "map-pusher", i, {"success": True}, uses_map=True))
+        recs.append(_rec("rearrange-v2", "twin-pusher", i, {"success": True}, uses_map=False, twin_of="map-pusher"))
+    a = suite_answer(recs, "rearrange-v2")
+    assert a.best == ("map-pusher", "e") and (a.compared, a.baseline) == (("map-pusher", "e"), ("twin-pusher", "e"))
+    assert a.verdict == "no detectable difference"
