@@ -31,12 +31,13 @@ from pathlib import Path
 
 from conceptfusion.errors import HarnessError
 from conceptfusion.io_utils import atomic_write_text
+from conceptfusion.strict_json import loads_strict
 from harness.report.stats import metric_value, paired_comparison, wilson_interval
 from harness.runner.results import latest_records, load_results
 from sim_envs.scenes.sealed import MANIFEST_NAME, SEALED_FOLDER
 
 __all__ = ["SEALED_SUITES", "DATA_DIR", "RECORDS_FILE", "MEASURED_FILE", "strip_record", "headline", "headline_table", "agents_table",
-           "positions_table", "readme_with_tables", "main"]
+           "positions_table", "readme_with_tables", "replace_between_markers", "read_kept_records", "write_kept_records", "main"]
 
 SEALED_SUITES = {"rearrange-v2": 160, "search-v2": 150, "chain-v2": 30, "fetch-v2": 30}
 """The suites measured on the sealed set, with their whole size."""
@@ -169,6 +170,21 @@ README_START = "<!-- headline tables: python -m harness.report.headline RUN... -
 README_END = "<!-- end of the headline tables -->"
 
 
+def replace_between_markers(text: str, start: str, end: str, body: str, what: str) -> str:
+    """``text`` with what lies between the lines ``start`` and ``end`` replaced by ``body``: how a
+    generated table is kept in the README.
+
+    Raises:
+        HarnessError: the text lacks either marker (``what`` names the table in the message).
+    """
+    try:
+        head, rest = text.split(start, 1)
+        _, tail = rest.split(end, 1)
+    except ValueError:
+        raise HarnessError(f"README: expected the markers {start!r} and {end!r} around the {what}") from None
+    return f"{head}{start}\n{body}\n{end}{tail}"
+
+
 def readme_with_tables(readme: str, measured: dict) -> str:
     """``readme`` with the text between :data:`README_START` and :data:`README_END` replaced by the
     headline table of ``measured`` (:func:`headline_table`: each map agent against its matched
@@ -177,12 +193,23 @@ def readme_with_tables(readme: str, measured: dict) -> str:
     Raises:
         HarnessError: the README lacks the markers.
     """
-    try:
-        head, rest = readme.split(README_START, 1)
-        _, tail = rest.split(README_END, 1)
-    except ValueError:
-        raise HarnessError(f"README: expected the markers {README_START!r} and {README_END!r} around the headline tables") from None
-    return f"{head}{README_START}\n{headline_table(measured)}\n{README_END}{tail}"
+    return replace_between_markers(readme, README_START, README_END, headline_table(measured), "headline tables")
+
+
+def read_kept_records(path: Path) -> list[dict]:
+    """The stripped records a measurement keeps (:data:`RECORDS_FILE`, the sim-to-sim records):
+    JSON lines, read strictly (a bad line is a :class:`HarnessError` naming the file and line)."""
+    text = Path(path).read_text(encoding="utf-8")
+    return [loads_strict(line, source=str(path), line=i, error=HarnessError) for i, line in enumerate(text.splitlines(), 1)
+            if line.strip()]
+
+
+def write_kept_records(path: Path, records: list[dict]) -> list[dict]:
+    """Write the newest record of each episode of ``records`` to ``path`` (atomically), in a stable
+    order (suite, encoder, agent, episode, seed), one sorted-key JSON object a line; returns them."""
+    keep = sorted(latest_records(records), key=lambda r: (r["suite"], r["encoder"], r["agent"], r["episode_id"], r["seed"]))
+    atomic_write_text(path, "".join(json.dumps(r, sort_keys=True) + "\n" for r in keep))
+    return keep
 
 
 def _manifest_sha() -> str:
@@ -220,8 +247,7 @@ def main(argv: list[str] | None = None) -> int:
             print(f"error: {exc}", file=sys.stderr)
             return 2
         atomic_write_text(readme, text)
-        keep = sorted(latest_records(records), key=lambda r: (r["suite"], r["encoder"], r["agent"], r["episode_id"], r["seed"]))
-        atomic_write_text(RECORDS_FILE, "".join(json.dumps(r, sort_keys=True) + "\n" for r in keep))
+        keep = write_kept_records(RECORDS_FILE, records)
         atomic_write_text(MEASURED_FILE, json.dumps(measured, indent=1, sort_keys=True) + "\n")
         print(f"wrote {RECORDS_FILE} ({len(keep)} records), {MEASURED_FILE} and the tables in {readme}")
     return 0

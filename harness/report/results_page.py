@@ -23,9 +23,8 @@ import tempfile
 from pathlib import Path
 
 from conceptfusion.io_utils import atomic_write_text
-from conceptfusion.strict_json import loads_strict
 from harness.report.document import Cell, Figure, Heading, Table, render_markdown
-from harness.report.headline import MEASURED_FILE, RECORDS_FILE, agents_table, headline, headline_table, positions_table
+from harness.report.headline import MEASURED_FILE, RECORDS_FILE, agents_table, read_kept_records, headline, headline_table, positions_table
 from harness.report.markdown import build_report
 from harness.runner.results import load_results
 
@@ -42,8 +41,7 @@ How the figures moved over time is on [Measurement history](measurement-history.
 
 
 def _sealed_section(records_file: Path) -> list[str]:
-    text = records_file.read_text(encoding="utf-8")
-    records = [loads_strict(line, source=str(records_file), line=i, error=ValueError) for i, line in enumerate(text.splitlines(), 1) if line.strip()]
+    records = read_kept_records(records_file)
     measured = {"figures": headline(records)}
     commit = ""
     if MEASURED_FILE.is_file() and records_file == RECORDS_FILE:
@@ -66,14 +64,14 @@ _FIGURE_SECTIONS = ("Query heatmaps",)
 
 def _sim_section() -> list[str]:
     """The MuJoCo-against-PyBullet table from the kept records (:mod:`harness.report.sim_to_sim`), when there are any."""
-    from harness.report.sim_to_sim import RECORDS_FILE as SIM_RECORDS, read_records, sim_to_sim, sim_to_sim_table
+    from harness.report.sim_to_sim import RECORDS_FILE as SIM_RECORDS, sim_to_sim, sim_to_sim_table
 
     if not SIM_RECORDS.is_file():
         return []
     return ["## MuJoCo against PyBullet", "",
             "The same sealed searches, agents and perception in both simulators, paired by episode "
             "(`cfharness develop sim-to-sim` kept the records in `harness/data/sim_to_sim/records.jsonl`):", "",
-            sim_to_sim_table(sim_to_sim(read_records(SIM_RECORDS))), ""]
+            sim_to_sim_table(sim_to_sim(read_kept_records(SIM_RECORDS))), ""]
 
 
 def _page_blocks(blocks: list) -> list:

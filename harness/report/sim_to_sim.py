@@ -17,7 +17,6 @@ table from that file.
 from __future__ import annotations
 
 import argparse
-import json
 import sys
 from dataclasses import dataclass
 from pathlib import Path
@@ -26,7 +25,7 @@ import numpy as np
 
 from conceptfusion.errors import HarnessError
 from conceptfusion.io_utils import atomic_write_text
-from conceptfusion.strict_json import loads_strict
+from harness.report.headline import read_kept_records, replace_between_markers
 from harness.report.stats import bootstrap_ci, mcnemar_exact, metric_value, wilson_interval
 from harness.runner.results import latest_records, load_results
 
@@ -115,24 +114,11 @@ def sim_to_sim_table(pairs: list[SimPair]) -> str:
 
 def readme_with_table(readme: str, table: str) -> str:
     """``readme`` with the text between :data:`README_START` and :data:`README_END` replaced by ``table``."""
-    try:
-        head, rest = readme.split(README_START, 1)
-        _, tail = rest.split(README_END, 1)
-    except ValueError:
-        raise HarnessError(f"README: expected the markers {README_START!r} and {README_END!r} around the sim-to-sim "
-                           "table") from None
-    return f"{head}{README_START}\n{table}\n{README_END}{tail}"
-
-
-def read_records(path: Path = RECORDS_FILE) -> list[dict]:
-    """Stripped records of a JSON-lines file (:data:`RECORDS_FILE` or the headline's)."""
-    text = path.read_text(encoding="utf-8")
-    return [loads_strict(line, source=str(path), line=i, error=HarnessError) for i, line in enumerate(text.splitlines(), 1)
-            if line.strip()]
+    return replace_between_markers(readme, README_START, README_END, table, "sim-to-sim table")
 
 
 def main(argv: list[str] | None = None) -> int:
-    from harness.report.headline import RECORDS_FILE as SEALED_RECORDS, strip_record
+    from harness.report.headline import RECORDS_FILE as SEALED_RECORDS, strip_record, write_kept_records
 
     p = argparse.ArgumentParser(prog="cfharness develop sim-to-sim", description=__doc__.splitlines()[0])
     p.add_argument("runs", nargs="+", help="run folders of <suite>-pybullet runs (and of their MuJoCo suite, when the "
@@ -143,9 +129,8 @@ def main(argv: list[str] | None = None) -> int:
         runs = [strip_record(r) for run in args.runs for r in load_results(Path(run) / "results.jsonl")]
         pyb = {(r["suite"][: -len(PYBULLET_SUFFIX)], r["agent"], r["encoder"]) for r in runs
                if r["suite"].endswith(PYBULLET_SUFFIX)}
-        mujoco = [r for r in read_records(SEALED_RECORDS) if (r["suite"], r["agent"], r["encoder"]) in pyb]
-        keep = sorted(latest_records(mujoco + runs), key=lambda r: (r["suite"], r["encoder"], r["agent"], r["episode_id"], r["seed"]))
-        table = sim_to_sim_table(sim_to_sim(keep))
+        mujoco = [r for r in read_kept_records(SEALED_RECORDS) if (r["suite"], r["agent"], r["encoder"]) in pyb]
+        table = sim_to_sim_table(sim_to_sim(mujoco + runs))
     except (HarnessError, ValueError, OSError) as exc:
         print(f"error: {exc}", file=sys.stderr)
         return 2
@@ -158,7 +143,7 @@ def main(argv: list[str] | None = None) -> int:
             print(f"error: {exc}", file=sys.stderr)
             return 2
         atomic_write_text(readme, text)
-        atomic_write_text(RECORDS_FILE, "".join(json.dumps(r, sort_keys=True) + "\n" for r in keep))
+        keep = write_kept_records(RECORDS_FILE, mujoco + runs)
         print(f"wrote {RECORDS_FILE} ({len(keep)} records) and the table in {readme}")
     return 0
 
