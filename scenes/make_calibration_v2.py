@@ -11,6 +11,8 @@ to develop and choose agent settings (and perception) on, never to report.
 - ``calibration-v2/chain-episodes-v2.jsonl``: one multi-goal search (chains of 2, 3 and 4 goals
   in turn, :mod:`sim_envs.scenes.chain_episodes`) per apartment, and
   ``calibration-v2/fetch-episodes-v2.jsonl``: one "explore, then fetch" episode per apartment;
+- ``calibration-v2/instruct-episodes-v2.jsonl``: the development instruction episodes
+  (:func:`scenes.make_instruct_v2.dev_file`), 4 per apartment;
 - ``calibration-v2/tabletop-v2-<seed>.json`` and ``calibration-v2/rearrange-episodes-v2.jsonl``:
   :data:`NUM_TABLE_EPISODES` rearrangement episodes drawn as the shipped ``rearrange-v2`` ones
   (:func:`~sim_envs.scenes.tabletop_v2_episodes.generate_tabletop_v2_episodes`, one table each,
@@ -92,9 +94,12 @@ def chain_files(search: dict[str, str]) -> dict[str, str]:
 
 
 def build_files() -> dict[str, str]:
-    """Relative path under ``scenes/`` -> file text: every apartment and table, and the three episode files."""
+    """Relative path under ``scenes/`` -> file text: every apartment and table, and the episode files."""
+    from scenes.make_instruct_v2 import dev_file
+
     search = search_files()
-    return {**search, **chain_files(search), **table_files()}
+    apartments = {rel: text for rel, text in search.items() if rel.endswith(".json")}
+    return {**search, **chain_files(search), **table_files(), **dev_file(apartments)}
 
 
 def main(argv: list[str] | None = None) -> int:

@@ -29,7 +29,7 @@ from sim_envs.envs.rendering import LastFrameRendering, check_render_mode, frame
 from sim_envs.envs.household_backends import HouseholdBackend, check_backend
 from sim_envs.scenes.descriptions import answer_phrases
 from sim_envs.scenes.episodes import Episode, EpisodeSet, resolve_scene, start_outside_message
-from sim_envs.scenes.floorplan import occupancy_grid
+from sim_envs.scenes.floorplan import occupancy_grid, room_plan_observation, room_plan_spaces
 from sim_envs.scenes.graph import object_aabbs, scene_graph
 from sim_envs.scenes.search_episodes import default_search_episodes
 
@@ -68,10 +68,21 @@ class ObjectSearchEnv(EpisodeLifecycle, LastFrameRendering, gym.Env):
     paths, each from where the base stopped for the previous goal. ``max_steps`` is the whole
     chain's budget.
 
+    **Instructions** (an episode whose goal lists ``accept``, :mod:`sim_envs.scenes.instruct_episodes`):
+    several objects satisfy the instruction ("something to eat"); a stop within the success
+    distance of any of them succeeds, ``distance_to_goal`` is to the nearest, and SPL's shortest
+    path is to the nearest success region.
+
     **Explore, then fetch** (an episode with ``explore_steps``): for that many steps the
     observation's ``goal`` is :data:`conceptfusion.tasks.EXPLORE_GOAL` and ``stop`` is ignored (the
     base stands still); then the first goal is revealed and the episode goes on as above, its
     SPL over the path driven from there (``info["exploring"]`` says which phase a step is in).
+
+    **Room plan** (``room_plan=True``): the observation also holds the apartment's labelled floor
+    plan, what a home robot is given at set-up (room outlines and their names; no furniture, no
+    objects): ``room_boxes`` (8, 4) float32 ``[x_min, y_min, x_max, y_max]`` per room and
+    ``room_types`` (8,) int64, ``k + 1`` for :data:`~sim_envs.scenes.floorplan.ROOM_TYPES` ``[k]``, 0
+    for an unused row (:func:`~sim_envs.scenes.floorplan.room_plan_observation`).
 
     **Actions** ``Box(3)``: ``[linear m/s in [-0.3, 0.6], angular rad/s in [-1.5, 1.5], stop]``;
     ``stop > 0.5`` ends the episode. Each step applies the command for ``control_dt`` seconds
@@ -142,8 +153,10 @@ class ObjectSearchEnv(EpisodeLifecycle, LastFrameRendering, gym.Env):
         camera: bool = True,
         render_mode: str | None = None,
         backend: str = "mujoco",
+        room_plan: bool = False,
     ) -> None:
         where = self.env_name
+        self.room_plan = check_bool(where, "room_plan", room_plan)
         self.backend = check_backend(where, backend)
         check_render_mode(render_mode)
         self.segmentation = check_bool(where, "segmentation", segmentation)
@@ -175,6 +188,7 @@ class ObjectSearchEnv(EpisodeLifecycle, LastFrameRendering, gym.Env):
                 **(frame_spaces(height, width) if self.camera else {}),
                 "base_pose": spaces.Box(-np.inf, np.inf, (3,), np.float64),
                 "goal": spaces.Text(max_length=_MAX_GOAL, min_length=1, charset=_GOAL_CHARSET),
+                **(room_plan_spaces() if self.room_plan else {}),
             }
         )
         self._backend: HouseholdBackend | None = None
@@ -183,6 +197,8 @@ class ObjectSearchEnv(EpisodeLifecycle, LastFrameRendering, gym.Env):
         self._last_frame = None
         self._pose: np.ndarray | None = None
         self._goal_box: np.ndarray | None = None
+        self._accepted_boxes: list[np.ndarray] = []
+        self._room_plan: dict[str, np.ndarray] = {}
 
     # -- episode set-up --------------------------------------------------------------------
 
@@ -201,6 +217,8 @@ class ObjectSearchEnv(EpisodeLifecycle, LastFrameRendering, gym.Env):
             self._scene_key = scene.id
         self.scene = scene
         self._object_phrases = [answer_phrases(o) for o in scene.objects]
+        if self.room_plan:
+            self._room_plan = room_plan_observation(scene, f"{self.env_name}: episode {episode.episode_id!r}")
 
     def _is_free(self, xy) -> bool:
         occ = self._occ
@@ -219,11 +237,12 @@ class ObjectSearchEnv(EpisodeLifecycle, LastFrameRendering, gym.Env):
         self.episode = episode
         ids = [o.id for o in self.scene.objects]
         for k, goal in enumerate(episode.goals):
-            if goal.object_id not in ids:
-                raise SimError(
-                    f"{self.env_name}: episode {episode.episode_id!r}: goals[{k}]: scene {self.scene.id} has no object "
-                    f"{goal.object_id!r}{did_you_mean(goal.object_id, ids)} (objects: {', '.join(ids)})"
-                )
+            for field_name, oid in [("", goal.object_id)] + [(".accept", a) for a in goal.accept]:
+                if oid not in ids:
+                    raise SimError(
+                        f"{self.env_name}: episode {episode.episode_id!r}: goals[{k}]{field_name}: scene {self.scene.id} has no "
+                        f"object {oid!r}{did_you_mean(oid, ids)} (objects: {', '.join(ids)})"
+                    )
             if len(episode.goals) > 1:
                 text = goal.description
                 if not isinstance(text, str) or not 1 <= len(text) <= _MAX_GOAL or any(c not in _GOAL_CHARSET for c in text):
@@ -259,13 +278,19 @@ class ObjectSearchEnv(EpisodeLifecycle, LastFrameRendering, gym.Env):
         """Make the episode's goal ``k`` the current one; its leg's shortest path (from the base's
         pose now) adds to the chain's."""
         ids = [o.id for o in self.scene.objects]
+        goal = self.episode.goals[k]
         self._goal_k = k
-        self._goal_index = ids.index(self.episode.goals[k].object_id)
-        box = object_aabbs(self._backend.sim)[self._goal_index]
-        self._goal_box = box
+        self._goal_index = ids.index(goal.object_id)
+        boxes = object_aabbs(self._backend.sim)
+        self._goal_box = boxes[self._goal_index]
+        # the goal's object first, then those its ``accept`` adds: reaching any of them reaches the goal
+        self._accepted_boxes = [self._goal_box] + [boxes[ids.index(a)] for a in goal.accept]
         cx, cy = self._occ.centres()
-        d = np.sqrt(np.maximum(np.maximum(box[0, 0] - cx, 0), cx - box[1, 0]) ** 2 + np.maximum(np.maximum(box[0, 1] - cy, 0), cy - box[1, 1]) ** 2)
-        self._shortest += geodesic_to_goal(self._free, self._occ.origin, self._occ.cell, tuple(self._pose[:2]), d <= self.success_distance)
+        region = np.zeros(cx.shape, bool)
+        for box in self._accepted_boxes:
+            d = np.hypot(np.maximum(np.maximum(box[0, 0] - cx, 0), cx - box[1, 0]), np.maximum(np.maximum(box[0, 1] - cy, 0), cy - box[1, 1]))
+            region |= d <= self.success_distance
+        self._shortest += geodesic_to_goal(self._free, self._occ.origin, self._occ.cell, tuple(self._pose[:2]), region)
 
     def _goal_text(self) -> str:
         """What the observation's ``goal`` says: the exploration phrase, the instruction, or a
@@ -347,7 +372,8 @@ class ObjectSearchEnv(EpisodeLifecycle, LastFrameRendering, gym.Env):
             f = self._backend.camera.render(segmentation=self.segmentation)
             self._last_frame = f
             frame = f.observation()
-        obs = {**frame, "base_pose": self._pose.copy(), "goal": self._goal_text()}
+        obs = {**frame, "base_pose": self._pose.copy(), "goal": self._goal_text(),
+               **{k: v.copy() for k, v in self._room_plan.items()}}
         info = {
             "episode_id": self.episode.episode_id,
             "scene_id": self.scene.id,
@@ -373,6 +399,6 @@ class ObjectSearchEnv(EpisodeLifecycle, LastFrameRendering, gym.Env):
         return {
             "goal_object_id": self.episode.goals[self._goal_k].object_id,
             "goal_index": self._goal_k,
-            "distance_to_goal": box_distance_xy(self._pose[:2], self._goal_box[0, :2], self._goal_box[1, :2]),
+            "distance_to_goal": min(box_distance_xy(self._pose[:2], b[0, :2], b[1, :2]) for b in self._accepted_boxes),
             "shortest_path_length": self._shortest,
         }

@@ -24,6 +24,10 @@ each with the same kind as the episode's), and for object search an optional ``e
 (an exploration budget before the first goal is revealed). A file whose episodes and goals
 carry none of these is written as version 1, byte for byte as before, and version 1
 files load as before.
+
+Version 3 adds instruction episodes (:mod:`sim_envs.scenes.instruct_episodes`): an optional
+per-episode ``instruction_kind`` (:data:`INSTRUCTION_KINDS`) and per goal an optional ``accept``,
+the other objects that satisfy the instruction too (stopping near any of them succeeds).
 """
 
 from __future__ import annotations
@@ -48,13 +52,13 @@ from sim_envs.scenes.household_format import MAX_MAGNITUDE
 from sim_envs.scenes.gen_tabletop import generate_tabletop
 
 __all__ = [
-    "EpisodeFormatError", "Goal", "Episode", "EpisodeSet", "FORMAT", "VERSION", "TASKS", "SCENES_ROOT",
+    "EpisodeFormatError", "Goal", "Episode", "EpisodeSet", "FORMAT", "VERSION", "TASKS", "INSTRUCTION_KINDS", "SCENES_ROOT",
     "MAX_LINE_DISTANCE", "check_scene_ref", "start_outside_message", "load_episodes", "save_episodes", "episodes_text", "resolve_scene", "tabletop_goals", "tabletop_instruction",
     "generate_tabletop_episodes",
 ]
 
 FORMAT = "cf-episodes"
-VERSION = 2
+VERSION = 3
 TASKS = ("tabletop_rearrange", "object_search")
 SIDES = ("left", "right")
 SCENES_ROOT = Path(__file__).resolve().parents[2] / "scenes"
@@ -75,12 +79,18 @@ class Goal:
     """How the instruction names the object ("the coffee mug"); None: not recorded."""
     description_kind: str | None = None
     """The description's kind (a ``DESCRIPTION_KINDS`` entry); None: not recorded."""
+    accept: tuple[str, ...] = ()
+    """Object search only: other objects that satisfy this goal as well (an instruction that
+    several objects answer, "something to eat"); stopping near any of them reaches the goal.
+    ``object_id`` is the one the episode's shortest path and the oracle head for."""
 
     def to_json(self) -> dict:
         d: dict = {"object_id": self.object_id}
         for key in ("side", "description", "description_kind"):
             if getattr(self, key) is not None:
                 d[key] = getattr(self, key)
+        if self.accept:
+            d["accept"] = list(self.accept)
         return d
 
 
@@ -100,6 +110,9 @@ class Episode:
     description_kind: str | None = None
     """How ``instruction`` names the goal (a :data:`~sim_envs.scenes.descriptions.DESCRIPTION_KINDS`
     entry); None: not recorded (version 1 episodes)."""
+    instruction_kind: str | None = None
+    """Instruction episodes (version 3): what the instruction names instead of an object, one of
+    :data:`INSTRUCTION_KINDS` (``need``, ``room``, ``relation``); None: a plain search."""
     explore_steps: int = 0
     """Object search only ("explore, then fetch"): steps of exploration before the first goal is
     revealed (the observation's ``goal`` is :data:`conceptfusion.tasks.EXPLORE_GOAL` until then);
@@ -113,6 +126,7 @@ class Episode:
             "start_pose": list(self.start_pose) if self.start_pose is not None else None, "max_steps": self.max_steps,
             **({"description_kind": self.description_kind} if self.description_kind is not None else {}),
             **({"explore_steps": self.explore_steps} if self.explore_steps else {}),
+            **({"instruction_kind": self.instruction_kind} if self.instruction_kind is not None else {}),
         }
 
 
@@ -125,7 +139,7 @@ class EpisodeSet:
     episodes: tuple[Episode, ...]
 
     def header(self) -> dict:
-        version = 2 if any(
+        version = 3 if any(e.instruction_kind is not None or any(g.accept for g in e.goals) for e in self.episodes) else 2 if any(
             e.description_kind is not None or e.explore_steps
             or any(g.description is not None or g.description_kind is not None for g in e.goals)
             for e in self.episodes
@@ -205,7 +219,11 @@ def _resolve_scene_cached(ref: str, scene_seed: int, root: str) -> Scene:
 
 
 _EPISODE_FIELDS = ("episode_id", "scene", "scene_seed", "instruction", "goals", "start_pose", "max_steps", "description_kind",
-                   "explore_steps")
+                   "explore_steps", "instruction_kind")
+INSTRUCTION_KINDS = ("need", "room", "relation")
+"""What an instruction episode's instruction names: a need ("something to eat"), a need or group in
+a room ("something to write with in the study"), or an object by its relation to another ("something
+on the dining table")."""
 _HEADER_FIELDS = ("format", "version", "task", "generator_seed")
 
 
@@ -241,7 +259,14 @@ def _parse_episode(d, task: str, where: str) -> Episode:
     for k, g in enumerate(goals_raw):
         if not isinstance(g, dict) or not isinstance(g.get("object_id"), str) or not g["object_id"]:
             raise EpisodeFormatError(f"{where}: goals[{k}] expected {{'object_id': str, ...}}, got {g!r}")
-        _check_keys(g, ("object_id", "side", "description", "description_kind"), f"{where}: goals[{k}]")
+        _check_keys(g, ("object_id", "side", "description", "description_kind", "accept"), f"{where}: goals[{k}]")
+        accept = g.get("accept", [])
+        if not isinstance(accept, list) or not all(isinstance(a, str) and a for a in accept) or g["object_id"] in accept \
+                or len(set(accept)) != len(accept):
+            raise EpisodeFormatError(f"{where}: goals[{k}].accept expected a list of distinct object ids other than "
+                                     f"{g['object_id']!r}, got {accept!r}")
+        if accept and task != "object_search":
+            raise EpisodeFormatError(f"{where}: goals[{k}].accept is for object_search episodes, got it in a {task!r} file")
         desc, desc_kind = g.get("description"), g.get("description_kind")
         if desc is not None and (not isinstance(desc, str) or not desc.strip()):
             raise EpisodeFormatError(f"{where}: goals[{k}].description expected a non-empty string, got {desc!r}")
@@ -255,7 +280,7 @@ def _parse_episode(d, task: str, where: str) -> Episode:
         if g["object_id"] in ids:
             raise EpisodeFormatError(f"{where}: goals[{k}].object_id {g['object_id']!r} repeats goals[{ids.index(g['object_id'])}]")
         ids.append(g["object_id"])
-        goals.append(Goal(g["object_id"], side, desc, desc_kind))
+        goals.append(Goal(g["object_id"], side, desc, desc_kind, tuple(accept)))
     pose = d.get("start_pose")
     if pose is not None:
         if not isinstance(pose, list) or len(pose) != 3 or not all(
@@ -275,6 +300,9 @@ def _parse_episode(d, task: str, where: str) -> Episode:
     kind = d.get("description_kind")
     if kind is not None and kind not in DESCRIPTION_KINDS:
         raise EpisodeFormatError(f"{where}: 'description_kind' expected null or one of {DESCRIPTION_KINDS}, got {kind!r}")
+    instruction_kind = d.get("instruction_kind")
+    if instruction_kind is not None and instruction_kind not in INSTRUCTION_KINDS:
+        raise EpisodeFormatError(f"{where}: 'instruction_kind' expected null or one of {INSTRUCTION_KINDS}, got {instruction_kind!r}")
     explore = d.get("explore_steps", 0)
     if not _is_int(explore) or not 0 <= explore < max_steps:
         raise EpisodeFormatError(f"{where}: 'explore_steps' expected an integer in [0, max_steps) = [0, {max_steps}), got {explore!r}")
@@ -284,6 +312,7 @@ def _parse_episode(d, task: str, where: str) -> Episode:
         episode_id=_field(d, "episode_id", str, where), scene=_field(d, "scene", str, where),
         scene_seed=scene_seed, instruction=_field(d, "instruction", str, where),
         goals=tuple(goals), start_pose=pose, max_steps=max_steps, description_kind=kind, explore_steps=explore,
+        instruction_kind=instruction_kind,
     )
 
 

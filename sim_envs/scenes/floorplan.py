@@ -11,7 +11,13 @@ from dataclasses import dataclass
 
 import numpy as np
 
-__all__ = ["Occupancy", "occupancy_grid", "reachable_rooms"]
+__all__ = ["Occupancy", "occupancy_grid", "reachable_rooms", "ROOM_TYPES", "MAX_ROOMS", "room_plan_spaces", "room_plan_observation",
+           "rooms_from_plan"]
+
+ROOM_TYPES = ("kitchen", "living room", "study", "bedroom", "bathroom", "dining room", "hallway", "office")
+"""Room names a labelled floor plan (``room_plan``) can carry, in code order."""
+MAX_ROOMS = 8
+"""Rows of a room plan observation."""
 
 
 @dataclass(frozen=True)
@@ -106,3 +112,48 @@ def reachable_rooms(scene, *, radius: float = 0.25, cell: float = 0.05, start_ro
         return set()
     comp = labels == int(np.argmax(counts))
     return {rid for rid, mask in rooms.items() if (mask & comp).any()}
+
+
+def room_plan_spaces() -> dict:
+    """The observation spaces of a labelled floor plan: ``room_boxes`` (:data:`MAX_ROOMS`, 4) and
+    ``room_types`` (:data:`MAX_ROOMS`,) (see :func:`room_plan_observation`)."""
+    from gymnasium import spaces
+
+    return {
+        "room_boxes": spaces.Box(-np.inf, np.inf, (MAX_ROOMS, 4), np.float32),
+        "room_types": spaces.MultiDiscrete(np.full(MAX_ROOMS, len(ROOM_TYPES) + 1, np.int64)),
+    }
+
+
+def room_plan_observation(scene, where: str) -> dict[str, np.ndarray]:
+    """A scene's labelled floor plan: the outline of every room and its name, nothing else.
+
+    Shape: returns ``room_boxes`` (MAX_ROOMS, 4) float32, row ``i`` ``[x_min, y_min, x_max, y_max]``
+    of room ``i`` (zeros past the last room), and ``room_types`` (MAX_ROOMS,) int64, ``k + 1`` for
+    ``ROOM_TYPES[k]`` (0 past the last room).
+
+    Raises:
+        SimError: more than :data:`MAX_ROOMS` rooms, or a room name not in :data:`ROOM_TYPES`.
+    """
+    from conceptfusion.errors import SimError
+
+    if len(scene.rooms) > MAX_ROOMS:
+        raise SimError(f"{where}: a room plan holds at most {MAX_ROOMS} rooms; scene {scene.id} has {len(scene.rooms)}")
+    boxes = np.zeros((MAX_ROOMS, 4), np.float32)
+    types = np.zeros(MAX_ROOMS, np.int64)
+    for i, room in enumerate(scene.rooms):
+        if room.name not in ROOM_TYPES:
+            raise SimError(f"{where}: scene {scene.id}: rooms[{i}].name {room.name!r}: a room plan names rooms by one of "
+                           f"{', '.join(ROOM_TYPES)}")
+        (x0, y0), (x1, y1) = room.floor
+        boxes[i] = (min(x0, x1), min(y0, y1), max(x0, x1), max(y0, y1))
+        types[i] = ROOM_TYPES.index(room.name) + 1
+    return {"room_boxes": boxes, "room_types": types}
+
+
+def rooms_from_plan(obs: dict) -> list[tuple[str, np.ndarray]]:
+    """The ``(name, [x_min, y_min, x_max, y_max])`` rooms of a room plan observation (empty when the
+    observation has none)."""
+    if "room_types" not in obs:
+        return []
+    return [(ROOM_TYPES[int(t) - 1], np.asarray(b, np.float64)) for t, b in zip(obs["room_types"], obs["room_boxes"]) if int(t) > 0]
