@@ -32,6 +32,7 @@ import dataclasses
 import logging
 import math
 from dataclasses import dataclass, field
+from typing import Callable
 
 import numpy as np
 from scipy import ndimage
@@ -152,6 +153,10 @@ class MapNavigator:
 
     def __init__(self, mapper: ConceptMapper, config: NavigatorConfig = NavigatorConfig(), *, seed: int = 0) -> None:
         self.mapper, self.config, self.seed = mapper, config, int(seed)
+        self.locator: Callable[[str, bool], QueryResult] | None = None
+        """Answers the goal in place of ``mapper.locate`` when set: ``locator(goal, presume)``,
+        ``presume`` True once ``presume_after`` applies (the instruction agents resolve an
+        instruction through their planner, :mod:`agents.instruct.agent`)."""
         self._goal_tracking = dataclasses.replace(config.tracking, goal_tolerance=config.goal_tolerance)
         """The tracker's settings on paths to the goal (frontier paths use ``config.tracking``)."""
         self.privileged = mapper.privileged
@@ -191,6 +196,9 @@ class MapNavigator:
         space seen since it was revealed."""
         self.log: list[str] = []
         """Why the agent did what it did, one line per decision (for reports)."""
+        self.gave_up = False
+        """The last ``stop`` came with no goal found and nothing left to explore (or after
+        repeated planning failures): a caller with other goals to try may go on instead."""
 
     # -- helpers ---------------------------------------------------------------------------
 
@@ -253,7 +261,10 @@ class MapNavigator:
         if self._goal == EXPLORE_GOAL:
             return QueryResult(False, [], np.zeros(0, np.float32), np.zeros(0, np.float32), np.zeros(0, np.float32),
                                reason="exploring: no goal yet")
-        if self._presumes and (self._steps - self._goal_start >= c.presume_after or self._exhausted):
+        presume = self._presumes and (self._steps - self._goal_start >= c.presume_after or self._exhausted)
+        if self.locator is not None:
+            return self.locator(self._goal, presume)
+        if presume:
             found = self.mapper.locate_present(self._goal)
             presumed = found.extras.get("presumed")
             if presumed and presumed != self._presumed:
@@ -317,6 +328,7 @@ class MapNavigator:
                     self._note("no goal and no frontier left: presuming the goal present")
                     return self._plan(pose)
                 self._note("no goal and no frontier left: stop")
+                self.gave_up = True
                 return search_action(stop=True)
             target = frontier.target_xy
             self._visited.append(target)
@@ -325,6 +337,7 @@ class MapNavigator:
             self._failures += 1
             self._note(f"planning to {np.round(target, 2).tolist()} failed: {plan.status} ({plan.reason})")
             if self._failures >= self.config.max_plan_failures:
+                self.gave_up = True
                 return search_action(stop=True)
             if plan.status == "start_in_collision":  # wedged against something: back off
                 return search_action(-0.2, 0.0)
