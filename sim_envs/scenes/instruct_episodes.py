@@ -7,12 +7,16 @@ objects of the apartment may satisfy it. Three kinds (:data:`~sim_envs.scenes.ep
   something to write with") or a need that a whole taxonomy group answers (:data:`GROUP_NEEDS`,
   "find something to eat": every food, fruit and pastry);
 - ``room``: a need or a taxonomy group in one room, named by the room ("a toy in the living
-  room") or by a piece of furniture only that room holds ("something to eat in the room with the
-  dining table"); at least one object outside the room answers the need too, so the room matters;
-- ``relation``: an object by its relation to another, from the scene graph: what stands on a
-  piece of furniture or on an object ("something on the desk"), what lies in a container
-  ("something in the basket"), or a group member next to an anchor object ("the toy next to the
-  vase"; within :data:`NEAR` of it, and another member of the group lies over :data:`FAR` away).
+  room") or by an object only that room holds ("something to eat in the room with the kettle");
+  at least one object outside the room answers the need too, so the room matters;
+- ``relation``: an object by its relation to another object, from the scene graph: what stands
+  on it ("something on the tray"), what lies in it ("something in the bowl"), or a group member
+  next to it ("the toy next to the vase"; within :data:`NEAR` of it, and another member of the
+  group lies over :data:`FAR` away).
+
+Anchors and room marks are objects of a category the apartment holds once, never furniture: the
+maps name what their perception grounds, and the privileged ``oracle-open`` perception grounds
+the library's objects only.
 
 Every episode's goal lists *all* the objects that satisfy its instruction: ``object_id`` is the
 one nearest the start along free floor (the shortest path and the oracle head for it), ``accept``
@@ -133,16 +137,16 @@ def instructions_of(scene: Scene) -> dict[str, list[Instruction]]:
     for k, (phrase, ids) in enumerate(needs):
         out["need"].append(Instruction("need", _NEED_TEMPLATES[k % len(_NEED_TEMPLATES)].format(phrase), ids))
 
-    # rooms: a need in one room, the room named or singled out by its furniture
-    unique_furniture = _unique_categories(scene.furniture)
-    furniture_room = {c: _room_name(scene, f.position[:2]) for c, f in unique_furniture.items()}
+    # rooms: a need in one room, the room named or singled out by an object only it holds
+    unique_objects = _unique_categories(objs)
+    mark_room = {c: room[o.id] for c, o in unique_objects.items()}
     k = 0
     for phrase, ids in needs:
         for name in sorted({room[i] for i in ids if room[i] is not None}):
             inside = tuple(i for i in ids if room[i] == name)
             if len(inside) == len(ids):
                 continue  # the room changes nothing
-            marks = sorted(c for c, r in furniture_room.items() if r == name)
+            marks = sorted(c for c, r in mark_room.items() if r == name and not set(ids) & {unique_objects[c].id})
             if k % 2 and marks:
                 text = f"{phrase} in the room with the {marks[k // 2 % len(marks)]}"
             else:
@@ -150,16 +154,12 @@ def instructions_of(scene: Scene) -> dict[str, list[Instruction]]:
             out["room"].append(Instruction("room", text, inside))
             k += 1
 
-    # relations: on / in a support, next to an anchor
-    unique_objects = _unique_categories(objs)
-    supports = {**{f.id: ("furniture", f) for f in unique_furniture.values()},
-                **{o.id: ("object", o) for o in unique_objects.values()}}
-    for sid, (what, thing) in sorted(supports.items()):
+    # relations: on / in an object, next to an object
+    for sid, thing in sorted((o.id, o) for o in unique_objects.values()):
         on_it = tuple(sorted(o.id for o in objs if o.support == sid))
         if not on_it:
             continue
-        kinds = {thing.category} | (set(info[sid].parents) if what == "object" else set())
-        inside = bool(_CONTAINER_GROUPS & kinds)
+        inside = bool(_CONTAINER_GROUPS & ({thing.category} | set(info[sid].parents)))
         out["relation"].append(Instruction("relation", f"something {'in' if inside else 'on'} the {thing.category}", on_it))
     for cat, anchor in sorted(unique_objects.items()):
         for group in sorted(GROUP_NEEDS):
