@@ -27,6 +27,8 @@ oracle-searcher    object_search        privileged  ground-truth floor plan and 
 map-navigator      object_search        yes         map, query, OMPL plan, pure pursuit
 twin-navigator     object_search        no (twin)   same grid, frontiers, planner; current frame only
 frame-searcher     object_search        no (2.5D)   current frame only, reactive wandering
+generic-planner    object_search        yes         instruction -> language planner alone -> navigator
+map-planner        object_search        yes         instruction + the map's rooms and objects -> planner
 random-walker      object_search        no          random velocities
 =================  ===================  ==========  ======================================
 """
@@ -189,10 +191,67 @@ register_agent(AgentSpec(
     "in a chain it looks again for each later goal",
     {**_NAVIGATOR_OPTIONS, "hold_sighting": Option(bool, True), "look_again": Option(bool, True)}, twin_of="map-navigator",
 ))
+def _planner_agent(use_map_context: bool, encoder: str, proposer: str, seed: int, planner: str, planner_url: str,
+                   planner_model: str, replan_every: int, **navigator):
+    import os
+
+    from agents.instruct.agent import InstructionAgent, InstructionAgentConfig
+    from agents.instruct.planner import make_planner
+
+    options = {}
+    if planner == "chat":
+        options = {"base_url": planner_url, "model": planner_model,
+                   **({"api_key": os.environ["CF_PLANNER_API_KEY"]} if os.environ.get("CF_PLANNER_API_KEY") else {})}
+    elif planner_url or planner_model:
+        raise ValueError(f"planner_url and planner_model are for planner='chat', got planner={planner!r}")
+    return InstructionAgent(_navigator(encoder, proposer, seed, 0, **navigator), make_planner(planner, **options),
+                            InstructionAgentConfig(use_map_context=use_map_context, replan_every=replan_every))
+
+
+def _generic_planner(encoder: str = "embedded", proposer: str = SEARCH_PROPOSER, seed: int = 0, planner: str = "offline",
+                     planner_url: str = "", planner_model: str = "", replan_every: int = 8, **navigator):
+    return _planner_agent(False, encoder, proposer, seed, planner, planner_url, planner_model, replan_every, **navigator)
+
+
+def _map_planner(encoder: str = "embedded", proposer: str = SEARCH_PROPOSER, seed: int = 0, planner: str = "offline",
+                 planner_url: str = "", planner_model: str = "", replan_every: int = 8, **navigator):
+    return _planner_agent(True, encoder, proposer, seed, planner, planner_url, planner_model, replan_every, **navigator)
+
+
+def _known_planner(name: str) -> bool:
+    from agents.instruct.planner import PLANNERS
+
+    if name not in PLANNERS:
+        from conceptfusion.names import unknown_name_error
+
+        raise unknown_name_error("language planner", name, PLANNERS, n=2, listing=f"valid: {', '.join(PLANNERS)}")
+    return True
+
+
 register_agent(AgentSpec(
     "frame-searcher", _frame_searcher, "object_search",
     "map-free searcher: checks each frame with the same perception, drives to what it sees, wanders otherwise",
     dict(_SEARCH_PERCEPTION),
+))
+_PLANNER_OPTIONS = {
+    **_NAVIGATOR_OPTIONS, "planner": Option(str, "offline", _known_planner, "a language planner: offline or chat"),
+    "planner_url": Option(str, "", None, "chat planner: the server's base URL (http://host:port/v1)"),
+    "planner_model": Option(str, "", None, "chat planner: the model name the server expects"),
+    "replan_every": Option.at_least(int, 8, 1)}
+"""The planner agents' options: the navigator's, the planner backend (a chat server's key comes
+from ``CF_PLANNER_API_KEY``) and how often the map-context agent asks again."""
+
+register_agent(AgentSpec(
+    "generic-planner", _generic_planner, "object_search",
+    "language planner on the instruction alone (general knowledge, no map context), then the map navigator searches for "
+    "its proposals in turn; the paper's planner without a map",
+    dict(_PLANNER_OPTIONS), uses_map=True,
+))
+register_agent(AgentSpec(
+    "map-planner", _map_planner, "object_search",
+    "language planner told the rooms and objects its map holds (and asking the map spatial questions) as it explores, "
+    "then the map navigator drives to its choice; the paper's ConceptFusion planner in the loop",
+    dict(_PLANNER_OPTIONS), uses_map=True,
 ))
 register_agent(AgentSpec(
     "random-walker", "agents.baselines:RandomWalker", "object_search",

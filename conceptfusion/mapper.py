@@ -43,7 +43,7 @@ from scipy.spatial import cKDTree
 
 from conceptfusion.frames import RGBDFrame
 from conceptfusion.map.fusion import PointFusionMap
-from conceptfusion.map.query import NEGATIVE_PHRASES, QueryResult, locate, relative_scores, relevancy, vocabulary_margins
+from conceptfusion.map.query import NEGATIVE_PHRASES, QueryResult, locate, locate_batch, relative_scores, relevancy, vocabulary_margins
 from conceptfusion.map.regions import Region, SupportTest
 from conceptfusion.names import did_you_mean
 from conceptfusion.perception.featurizer import FrameFeaturizer, PerceptionSpec, make_featurizer, score_floor_for
@@ -448,6 +448,11 @@ class ConceptMapper:
             relevancy_threshold=c.relevancy_threshold, voxel_size=c.voxel_size, min_points=c.min_points,
             support=SupportTest() if c.drop_support else None,
         )
+        return self._floored(res, floor)
+
+    def _floored(self, res: QueryResult, floor: bool) -> QueryResult:
+        """``res`` with the regions under the score floor (``config.min_score``) dropped, when ``floor``."""
+        c = self.config
         if c.min_score is None or not floor or not res.found:
             return res
         kept = [r for r in res.regions if float(np.median(r.scores_n)) >= c.min_score]
@@ -459,8 +464,21 @@ class ConceptMapper:
         )
 
     def locate_many(self, texts: Sequence[str]) -> dict[str, QueryResult]:
-        """:meth:`locate` for several descriptions."""
-        return {t: self.locate(t) for t in texts}
+        """:meth:`locate` for several descriptions, the same answers; on a fused map (no
+        ``semantic_views``) in one batch (:func:`~conceptfusion.map.query.locate_batch`: the map's
+        points read once, the queries scored several at a time), what listing a vocabulary needs."""
+        texts = list(dict.fromkeys(texts))
+        if self.config.semantic_views or not texts:
+            return {t: self.locate(t) for t in texts}
+        c = self.config
+        results = locate_batch(
+            self.map, np.stack([self.text_vector(t) for t in texts]), self.negatives(),
+            relevancy_threshold=c.relevancy_threshold, voxel_size=c.voxel_size, min_points=c.min_points,
+            support=SupportTest() if c.drop_support else None,
+        )
+        out = {t: self._floored(res, True) for t, res in zip(texts, results)}
+        self._answers.update(out)
+        return out
 
 
 _CONFIG_FIELDS = tuple(f.name for f in dataclasses.fields(MapperConfig))

@@ -78,6 +78,10 @@ class PlannerContext:
     and ``b``; a bool, a distance for ``howFar`` (m, closest surfaces), None when either is not in
     the map. None: no map to ask."""
 
+    exhausted: bool = False
+    """The agent has explored everything it can reach: choose the best the map holds now, or
+    nothing (the search ends)."""
+
     @property
     def has_map(self) -> bool:
         return self.ask is not None

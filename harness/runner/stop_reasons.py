@@ -67,6 +67,7 @@ STOP_REASONS: dict[str, str] = {
     "missed": "got near the goal (or pushed it) but not far enough",
     "planner": "stuck: no progress, or colliding, over its last steps",
     "step_limit": "ran out of steps while still on its way",
+    "planner_failure": "its language planner failed (a server timeout, a malformed reply; see the record's planner)",
     "timeout": "timed out (the harness's time limit)",
     "error": "crashed (an exception; see the error)",
 }

@@ -167,6 +167,13 @@ REARRANGE_V2_LIMIT = 64
 """Episodes ``rearrange-v2`` runs unless ``--limit`` says otherwise: the first 64 of its 160, so
 that the default comparison fits its time; ``--limit 160`` runs them all (the headline figures)."""
 
+INSTRUCT_FOLDER = SCENES_ROOT / "instruct-v2"
+"""The instruction apartments and episodes (``python -m scenes.make_instruct_v2``)."""
+INSTRUCT_V2_ENV = {**SEARCH_V2_ENV, "room_plan": True}
+"""Environment of ``instruct-v2``: ``search-v2``'s, plus the labelled room plan every agent is told."""
+INSTRUCT_V2_LIMIT = 24
+"""Episodes ``instruct-v2`` runs unless ``--limit`` says otherwise (``--limit 160``: all)."""
+
 SEARCH_V2_LIMIT = 16
 """Episodes ``search-v2`` runs unless ``--limit`` says otherwise: the first 16 of its 150 (goals
 named by name, synonym, attribute, function in turn), so that the default comparison fits its
@@ -253,6 +260,25 @@ SUITES: dict[str, Suite] = {
             env_kwargs={**SEARCH_V2_ENV, "backend": "pybullet"}, default_encoder="embedded-v2", limit=SEARCH_V2_LIMIT,
             question="Does the navigator's search survive a change of renderer and physics (PyBullet against MuJoCo)?",
             headline_metric="success",
+        ),
+        Suite(
+            "instruct-v2", "episodes",
+            "instruction search (the paper's planner in the loop): needs, rooms and relations instead of object names, on 20 "
+            "fresh apartments; a language planner told the map's rooms and objects against the same planner without them",
+            task="object_search", episodes_file=INSTRUCT_FOLDER / "instruct-episodes-v2.jsonl",
+            agents=("map-planner", "generic-planner", "oracle-searcher"),
+            env_kwargs=dict(INSTRUCT_V2_ENV), default_encoder="embedded-v2", limit=INSTRUCT_V2_LIMIT,
+            question="Does a language planner find what an instruction asks for better when it is told what the map holds?",
+            headline_metric="success", baseline="generic-planner", verdicts=("map context helps", "map context hurts"),
+        ),
+        Suite(
+            "instruct-v2-dev", "episodes",
+            "instruct-v2's development episodes (calibration apartments): for developing planners, never for reporting",
+            task="object_search", episodes_file=SCENES_ROOT / "calibration-v2" / "instruct-episodes-v2.jsonl",
+            agents=("map-planner", "generic-planner", "oracle-searcher"),
+            env_kwargs=dict(INSTRUCT_V2_ENV), default_encoder="embedded-v2", limit=INSTRUCT_V2_LIMIT,
+            question="(development) Does map context help the language planner?", headline_metric="success",
+            baseline="generic-planner", verdicts=("map context helps", "map context hurts"),
         ),
         Suite("query", "maps", "text, image and click query localisation over fused tabletop maps (3D mIoU, detection accuracy)",
               question=_Q_QUERY, headline_metric="text_miou"),

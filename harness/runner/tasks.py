@@ -258,8 +258,19 @@ def _run_search(job: EpisodeJob, agent, recorder: EpisodeRecorder | None = None)
         **_description(job, env.unwrapped.scene),
         "goal": _goal_text(job), "stop_reason": search_stop_reason(trace.end(info, truncated=truncated)),
         "success_radius": trace.success_radius,
+        **({"instruction_kind": job.episode.instruction_kind} if job.episode.instruction_kind else {}),
+        **_agent_extras(agent),
     }
+    if extras.get("planner", {}).get("failure") and not metrics["success"]:
+        extras["stop_reason"] = "planner_failure"
     return metrics, timings, goal.category, extras
+
+
+def _agent_extras(agent) -> dict:
+    """What an agent asks its record to keep (``record_extras()``, a JSON-able dict; the
+    instruction agents' planner calls): nothing for agents without the method."""
+    get = getattr(agent, "record_extras", None)
+    return dict(get()) if callable(get) else {}
 
 
 def _run_rearrange(job: EpisodeJob, agent, recorder: EpisodeRecorder | None = None) -> tuple[dict, dict, str | None, dict]:
