@@ -29,7 +29,8 @@ from dataclasses import dataclass
 
 import numpy as np
 
-from agents.instruct.planner import GoalQuery, LanguagePlanner, MapObject, PlannerContext, Proposal
+from agents.instruct.planner import LanguagePlanner
+from agents.instruct.proposal import GoalQuery, MapObject, PlannerContext, Proposal
 from agents.navigator import MapNavigator, search_action
 from conceptfusion.map.query import QueryResult
 from conceptfusion.spatial.comparators import closest_distance, get_comparator

@@ -37,7 +37,7 @@ from dataclasses import dataclass
 
 import numpy as np
 
-from agents.instruct.planner import GoalQuery, PlannerContext, Proposal, planner_failure
+from agents.instruct.proposal import GoalQuery, PlannerContext, Proposal, planner_failure
 
 __all__ = ["OfflinePlanner", "OfflinePlannerConfig", "ParsedInstruction", "parse_instruction", "planner_vocabulary",
            "RELATIONS", "ROOM_NAMES"]

@@ -13,31 +13,18 @@ integer; :func:`~conceptfusion.strict_json.loads_strict`) gives a cannot-parse
 after at most ``1 + max_retries`` attempts each bounded by ``timeout_s``. It never raises for
 server behaviour and never waits without bound.
 
-One attempt is one HTTP request under one wall-clock deadline, ``timeout_s`` after it starts:
-connecting, sending, the status line and headers and the body all share it. Every socket read
-and write gets the time left as its timeout, so a server that trickles its headers or body a
-byte at a time is cut off at the deadline too. (Not bounded by it: name resolution, which is
-the operating system's, and over ``https://`` each read of the TLS handshake gets the time left
-when connecting rather than a share of one deadline; the servers this is for are local
-``http://`` ones addressed by IP or ``localhost``.)
+One attempt is one HTTP request under one wall-clock deadline (:func:`agents.llm_http.request`).
 Settings are checked when the config is built (:class:`~conceptfusion.errors.AgentError`).
 """
 
 from __future__ import annotations
 
-import http.client
-import io
 import json
 import logging
-import math
 import time
-import urllib.error
-import urllib.parse
-import urllib.request
 from dataclasses import dataclass
 
-from conceptfusion.errors import AgentError
-from conceptfusion.strict_json import loads_strict
+from agents.llm_http import AttemptError, chat_reply_text, check_client_settings, request
 from agents.spatial.signature import ParseResult, cannot_parse, parse_signature
 
 __all__ = ["PAPER_PROMPT", "LLMParserConfig", "LLMParser", "build_request_body"]
@@ -58,9 +45,6 @@ Parse the provided queries into one of the above function formats.
 Query: How close is the chair from the sofa?
 Response: howFar(chair, sofa)"""
 """The paper's conditioning prompt, word for word (its typos "object 2" included)."""
-
-_RETRY_STATUSES = {408, 425, 429, 500, 502, 503, 504}
-_MAX_WAIT_S = 3600.0  # longest timeout_s / retry_delay_s accepted (sockets refuse ~1e10 s)
 
 
 @dataclass(frozen=True)
@@ -83,53 +67,17 @@ class LLMParserConfig:
     max_tokens: int = 64
     """Reply length cap; a signature is a handful of tokens."""
     api_key: str | None = None
-    """Sent as a bearer token when set; local servers usually need none."""
+    """Sent as a bearer token when set (printable ASCII, no whitespace); local servers usually need none."""
     max_reply_bytes: int = 1_000_000
     """Replies longer than this are rejected as garbage."""
 
     def __post_init__(self) -> None:
-        _check_base_url(self.base_url)
-        if not isinstance(self.model, str) or not self.model:
-            raise AgentError(f"model: expected a non-empty str, got {self.model!r}")
-        for name in ("timeout_s", "retry_delay_s", "temperature"):
-            value = getattr(self, name)
-            if isinstance(value, bool) or not isinstance(value, (int, float)) or not math.isfinite(value) or value < 0:
-                raise AgentError(f"{name}: expected a finite number >= 0, got {value!r}")
-        if self.timeout_s <= 0:
-            raise AgentError(f"timeout_s: expected a number > 0, got {self.timeout_s!r}")
-        for name in ("timeout_s", "retry_delay_s"):
-            if getattr(self, name) > _MAX_WAIT_S:
-                raise AgentError(f"{name}: expected at most {_MAX_WAIT_S:g} s, got {getattr(self, name)!r}")
-        for name in ("max_retries", "max_tokens", "max_reply_bytes"):
-            value = getattr(self, name)
-            if isinstance(value, bool) or not isinstance(value, int) or value < (0 if name == "max_retries" else 1):
-                raise AgentError(f"{name}: expected an int >= {0 if name == 'max_retries' else 1}, got {value!r}")
-        if self.api_key is not None and (
-            not isinstance(self.api_key, str) or not self.api_key or not (self.api_key.isascii() and self.api_key.isprintable())
-        ):
-            shown = type(self.api_key).__name__ if not isinstance(self.api_key, str) else "an empty str or one with other characters"
-            raise AgentError(f"api_key: expected None or a non-empty str of printable ASCII characters, got {shown}")
+        check_client_settings(self)
 
     @property
     def url(self) -> str:
         """The chat-completions endpoint."""
         return self.base_url.rstrip("/") + "/chat/completions"
-
-
-def _check_base_url(url: object) -> None:
-    """Refuse a ``base_url`` that could never be requested: not http(s), no host, a bad port,
-    or whitespace/control characters."""
-    if not isinstance(url, str) or not url.startswith(("http://", "https://")):
-        raise AgentError(f"base_url: expected an http:// or https:// URL, got {url!r}")
-    if any(c.isspace() or not c.isprintable() for c in url):
-        raise AgentError(f"base_url: expected no spaces or control characters, got {url!r}")
-    parts = urllib.parse.urlsplit(url)
-    if not parts.hostname:
-        raise AgentError(f"base_url: expected a host (http://HOST[:PORT]/...), got {url!r}")
-    try:
-        parts.port
-    except ValueError:
-        raise AgentError(f"base_url: expected a port number in [0, 65535] after the host, got {url!r}") from None
 
 
 def build_request_body(config: LLMParserConfig, question: str) -> dict:
@@ -144,173 +92,10 @@ def build_request_body(config: LLMParserConfig, question: str) -> dict:
     }
 
 
-class _AttemptError(Exception):
-    """One failed attempt; ``retry`` says whether another attempt may help."""
-
-    def __init__(self, reason: str, *, retry: bool) -> None:
-        super().__init__(reason)
-        self.reason = reason
-        self.retry = retry
-
-
-def _time_left(deadline: float) -> float:
-    """Seconds until ``deadline`` (``time.monotonic``); ``TimeoutError`` once it has passed."""
-    left = deadline - time.monotonic()
-    if left <= 0:
-        raise TimeoutError("the request deadline passed")
-    return left
-
-
-class _DeadlineReader(io.RawIOBase):
-    """The socket's raw reader with the time left to the deadline as every read's timeout."""
-
-    def __init__(self, raw, sock, deadline: float) -> None:
-        super().__init__()
-        self._raw, self._sock, self._deadline = raw, sock, deadline
-
-    def readable(self) -> bool:
-        return True
-
-    def readinto(self, buffer) -> int:
-        self._sock.settimeout(_time_left(self._deadline))
-        return self._raw.readinto(buffer)
-
-    def close(self) -> None:
-        self._raw.close()
-        super().close()
-
-
-class _DeadlineSocket:
-    """A connected socket whose writes and the reader ``makefile`` gives share one deadline
-    (``http.client`` reads the status line, headers and body through that reader)."""
-
-    def __init__(self, sock, deadline: float) -> None:
-        self._sock, self._deadline = sock, deadline
-
-    def makefile(self, mode: str = "r", *args, **kwargs):
-        if mode != "rb":  # http.client only reads "rb"
-            return self._sock.makefile(mode, *args, **kwargs)
-        raw = self._sock.makefile("rb", buffering=0)  # keeps the socket open while the reply is read
-        return io.BufferedReader(_DeadlineReader(raw, self._sock, self._deadline))
-
-    def sendall(self, data, *args) -> None:
-        self._sock.settimeout(_time_left(self._deadline))
-        self._sock.sendall(data, *args)
-
-    def __getattr__(self, name: str):
-        return getattr(self._sock, name)
-
-
-class _DeadlineConnection:
-    """Mixin for ``http.client`` connections: connect within the time left to ``deadline``,
-    then read and write through a :class:`_DeadlineSocket`."""
-
-    def __init__(self, *args, deadline: float, **kwargs) -> None:
-        super().__init__(*args, **kwargs)
-        self._deadline = deadline
-
-    def connect(self) -> None:
-        self.timeout = _time_left(self._deadline)
-        super().connect()
-        self.sock = _DeadlineSocket(self.sock, self._deadline)
-
-
-class _DeadlineHTTPConnection(_DeadlineConnection, http.client.HTTPConnection):
-    pass
-
-
-class _DeadlineHTTPSConnection(_DeadlineConnection, http.client.HTTPSConnection):
-    pass
-
-
-_DEADLINE_CONNECTIONS = {http.client.HTTPConnection: _DeadlineHTTPConnection, http.client.HTTPSConnection: _DeadlineHTTPSConnection}
-
-
-class _DeadlineOpen:
-    """Mixin for urllib's HTTP(S) handlers: open connections bounded by ``self.deadline``."""
-
-    deadline: float
-
-    def do_open(self, http_class, req, **kwargs):
-        cls = _DEADLINE_CONNECTIONS[http_class]
-        return super().do_open(lambda *a, **kw: cls(*a, deadline=self.deadline, **kw), req, **kwargs)
-
-
-class _DeadlineHTTPHandler(_DeadlineOpen, urllib.request.HTTPHandler):
-    pass
-
-
-class _DeadlineHTTPSHandler(_DeadlineOpen, urllib.request.HTTPSHandler):
-    pass
-
-
-def _open_with_deadline(request: urllib.request.Request, deadline: float):
-    """``urlopen(request)`` (proxies and redirects as urllib handles them) with every
-    connection's reads and writes bounded by ``deadline``."""
-    handlers = [_DeadlineHTTPHandler(), _DeadlineHTTPSHandler()]
-    for h in handlers:
-        h.deadline = deadline
-    return urllib.request.build_opener(*handlers).open(request, timeout=_time_left(deadline))
-
-
-def _read_bounded(response, deadline: float, limit: int) -> bytes:
-    chunks, size = [], 0
-    read = getattr(response, "read1", response.read)  # read1: one socket read, so the deadline is checked often
-    while True:
-        if time.monotonic() > deadline:
-            raise _AttemptError("timed out while reading the reply", retry=True)
-        chunk = read(65536)
-        if not chunk:
-            return b"".join(chunks)
-        size += len(chunk)
-        if size > limit:
-            raise _AttemptError(f"reply longer than {limit} bytes", retry=True)
-        chunks.append(chunk)
-
-
-class _ReplyError(AgentError):
-    """A reply that is JSON but not one to read: nested too deeply, a key twice, a huge integer."""
-
-
-def _reply_text(payload: bytes) -> str:
-    try:
-        data = loads_strict(payload.decode("utf-8"), source="reply", error=_ReplyError)
-    except (UnicodeDecodeError, json.JSONDecodeError) as err:
-        raise _AttemptError(f"reply is not JSON ({err.__class__.__name__})", retry=True) from None
-    except _ReplyError as err:
-        raise _AttemptError(f"reply refused: {err}", retry=True) from None
-    try:
-        choice = data["choices"][0]
-        text = choice["message"]["content"] if "message" in choice else choice["text"]
-    except (KeyError, IndexError, TypeError):
-        raise _AttemptError("reply has no choices[0].message.content", retry=True) from None
-    if not isinstance(text, str):
-        raise _AttemptError("reply content is not text", retry=True)
-    return text
-
-
 def _attempt(config: LLMParserConfig, body: bytes) -> str:
-    headers = {"Content-Type": "application/json", "Accept": "application/json"}
-    if config.api_key:
-        headers["Authorization"] = f"Bearer {config.api_key}"
-    request = urllib.request.Request(config.url, data=body, headers=headers, method="POST")
-    deadline = time.monotonic() + config.timeout_s
-    try:
-        with _open_with_deadline(request, deadline) as response:
-            payload = _read_bounded(response, deadline, config.max_reply_bytes)
-    except urllib.error.HTTPError as err:
-        err.close()
-        raise _AttemptError(f"server answered HTTP {err.code}", retry=err.code in _RETRY_STATUSES) from None
-    except urllib.error.URLError as err:
-        reason = err.reason
-        if isinstance(reason, TimeoutError):
-            raise _AttemptError(f"no reply within {config.timeout_s:g} s", retry=True) from None
-        raise _AttemptError(f"server unreachable ({reason})", retry=True) from None
-    except TimeoutError:
-        raise _AttemptError(f"no reply within {config.timeout_s:g} s", retry=True) from None
-    except (http.client.HTTPException, OSError) as err:
-        raise _AttemptError(f"connection failed ({err.__class__.__name__}: {err})", retry=True) from None
-    return _reply_text(payload)
+    payload = request(config.url, body=body, api_key=config.api_key, timeout_s=config.timeout_s,
+                      max_reply_bytes=config.max_reply_bytes)
+    return chat_reply_text(payload)
 
 
 @dataclass(frozen=True)
@@ -336,7 +121,7 @@ class LLMParser:
         for attempt in range(1, attempts + 1):
             try:
                 text = _attempt(self.config, body)
-            except _AttemptError as err:
+            except AttemptError as err:
                 reason, retry = err.reason, err.retry
             else:
                 result = parse_signature(text)

@@ -150,3 +150,9 @@ def test_question_of_the_wrong_type_is_refused():
     parser = LLMParser(LLMParserConfig(base_url="http://127.0.0.1:9/v1"))
     with pytest.raises(TypeError, match=r"question: expected a str, got bytes"):
         parser.parse(b"How far is the chair from the sofa?")
+
+
+def test_api_key_with_a_space_is_refused_without_showing_it():
+    with pytest.raises(AgentError, match=r"api_key: .* without whitespace, got a str of 9 characters with whitespace at index 4 \(the key is not shown\)") as info:
+        LLMParserConfig(base_url="http://x", api_key="sk-1 abcd")
+    assert "abcd" not in str(info.value)

@@ -21,8 +21,8 @@ ROOT = Path(__file__).resolve().parents[2]
 PACKAGES = ("conceptfusion", "sim_envs", "agents", "planners", "harness", "tower_training", "scenes")
 
 EXEMPT = {
-    "agents.spatial.llm._AttemptError": "module-private retry signal of the LLM client; always caught "
-    "in agents.spatial.llm, never leaves it",
+    "agents.llm_http.AttemptError": "retry signal of the chat-completions HTTP client; always caught by its "
+    "callers (agents.spatial.llm, agents.instruct.chat), never leaves them",
     "harness.runner.jobs.JobTimeout": "a control-flow signal like KeyboardInterrupt (a BaseException, "
     "so a job's `except Exception` cannot swallow it); the serial backend catches it and records "
     "`timeout`, it never reaches a caller",
