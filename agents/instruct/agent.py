@@ -34,7 +34,7 @@ from agents.instruct.proposal import GoalQuery, MapObject, PlannerContext, Propo
 from agents.navigator import MapNavigator, search_action
 from conceptfusion.map.query import QueryResult
 from conceptfusion.spatial.comparators import closest_distance, get_comparator
-from sim_envs.scenes.floorplan import rooms_from_plan
+from conceptfusion.tasks import rooms_from_plan
 
 __all__ = ["InstructionAgentConfig", "InstructionAgent", "map_phrase", "MAX_KEPT_CALLS"]
 

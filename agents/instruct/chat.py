@@ -149,6 +149,8 @@ def build_messages(instruction: str, context: PlannerContext) -> list[dict]:
     if context.has_map:
         lines.append("Objects in the map:" if context.objects else "Objects in the map: none yet")
         lines.extend(f"- {o.describe()}" for o in context.objects)
+        if context.exhausted:
+            lines.append("The robot has explored everything it can reach: choose the best of these objects, or no goal.")
     else:
         lines.append("No map: give goals from what homes usually hold; do not ask questions.")
     lines += [f"Instruction: {instruction.strip()}", "Reply:"]

@@ -8,7 +8,8 @@ instruction episodes use (:mod:`sim_envs.scenes.instruct_episodes`) and their ne
 with lead-ins such as "I need", "find", "take me to"; ``REL`` one of next to / near / beside /
 on / on top of / in / inside / under. ``WHAT`` ("something to eat", "the toy", "something") is
 ranked against the object vocabulary it knows (:func:`planner_vocabulary`: the object library's
-categories, each with its name, synonyms, function phrases and taxonomy groups) by cosine
+categories, each with its name, synonyms, function phrases and taxonomy groups, shipped as
+:data:`VOCABULARY_FILE`) by cosine
 similarity of MiniLM sentence embeddings; "something" alone ranks nothing (any object).
 
 Without map context (the generic planner) it proposes the :attr:`OfflinePlannerConfig.top_k`
@@ -34,12 +35,13 @@ from __future__ import annotations
 import functools
 import re
 from dataclasses import dataclass
+from pathlib import Path
 
 import numpy as np
 
 from agents.instruct.proposal import GoalQuery, PlannerContext, Proposal, planner_failure
 
-__all__ = ["OfflinePlanner", "OfflinePlannerConfig", "ParsedInstruction", "parse_instruction", "planner_vocabulary",
+__all__ = ["OfflinePlanner", "OfflinePlannerConfig", "VOCABULARY_FILE", "ParsedInstruction", "parse_instruction", "planner_vocabulary",
            "RELATIONS", "ROOM_NAMES"]
 
 ROOM_NAMES = ("kitchen", "living room", "study", "bedroom", "bathroom", "dining room", "hallway", "office")
@@ -132,20 +134,25 @@ def _head(what: str) -> str:
     return "" if what in _ANY else _strip_article(what)
 
 
+VOCABULARY_FILE = Path(__file__).with_name("vocabulary.json")
+"""The categories the planner knows, written from the object library (``python -m harness.planner_vocabulary``)."""
+
+
 @functools.lru_cache(maxsize=1)
 def planner_vocabulary() -> tuple[tuple[str, ...], tuple[tuple[str, ...], ...]]:
     """The categories the planner knows and, per category, the texts it is ranked by (its name,
-    synonyms, function phrases and "a <group>" for each taxonomy group above it)."""
-    from sim_envs.assets.library import catalogue
+    synonyms, function phrases and "a <group>" for each taxonomy group above it), from
+    :data:`VOCABULARY_FILE`."""
+    from conceptfusion.io_utils import read_json_file
 
-    cat = catalogue()
-    names, texts = [], []
-    for name in sorted(cat.categories):
-        c = cat.categories[name]
-        groups = tuple(f"a {g}" for g in cat.ancestors(name) if g not in ("object", name))
-        names.append(name)
-        texts.append((name, *c.synonyms, *c.functions, *groups))
-    return tuple(names), tuple(texts)
+    data = read_json_file(VOCABULARY_FILE, "planner vocabulary", ValueError)
+    cats = data.get("categories") if isinstance(data, dict) else None
+    if data.get("format") != "cf-planner-vocabulary" or not isinstance(cats, dict) or not cats or not all(
+            isinstance(v, list) and v and all(isinstance(t, str) and t for t in v) for v in cats.values()):
+        raise ValueError(f"{VOCABULARY_FILE}: expected format cf-planner-vocabulary with categories: name -> non-empty "
+                         "list of texts")
+    names = tuple(sorted(cats))
+    return names, tuple(tuple(cats[n]) for n in names)
 
 
 @functools.lru_cache(maxsize=1)

@@ -81,8 +81,9 @@ class ObjectSearchEnv(EpisodeLifecycle, LastFrameRendering, gym.Env):
     **Room plan** (``room_plan=True``): the observation also holds the apartment's labelled floor
     plan, what a home robot is given at set-up (room outlines and their names; no furniture, no
     objects): ``room_boxes`` (8, 4) float32 ``[x_min, y_min, x_max, y_max]`` per room and
-    ``room_types`` (8,) int64, ``k + 1`` for :data:`~sim_envs.scenes.floorplan.ROOM_TYPES` ``[k]``, 0
-    for an unused row (:func:`~sim_envs.scenes.floorplan.room_plan_observation`).
+    ``room_types`` (8,) int64, ``k + 1`` for :data:`~conceptfusion.tasks.ROOM_TYPES` ``[k]``, 0
+    for an unused row (:func:`~sim_envs.scenes.floorplan.room_plan_observation`; agents read it with
+    :func:`~conceptfusion.tasks.rooms_from_plan`).
 
     **Actions** ``Box(3)``: ``[linear m/s in [-0.3, 0.6], angular rad/s in [-1.5, 1.5], stop]``;
     ``stop > 0.5`` ends the episode. Each step applies the command for ``control_dt`` seconds

@@ -11,13 +11,9 @@ from dataclasses import dataclass
 
 import numpy as np
 
-__all__ = ["Occupancy", "occupancy_grid", "reachable_rooms", "ROOM_TYPES", "MAX_ROOMS", "room_plan_spaces", "room_plan_observation",
-           "rooms_from_plan"]
+from conceptfusion.tasks import MAX_ROOMS, ROOM_TYPES
 
-ROOM_TYPES = ("kitchen", "living room", "study", "bedroom", "bathroom", "dining room", "hallway", "office")
-"""Room names a labelled floor plan (``room_plan``) can carry, in code order."""
-MAX_ROOMS = 8
-"""Rows of a room plan observation."""
+__all__ = ["Occupancy", "occupancy_grid", "reachable_rooms", "room_plan_spaces", "room_plan_observation"]
 
 
 @dataclass(frozen=True)
@@ -115,8 +111,8 @@ def reachable_rooms(scene, *, radius: float = 0.25, cell: float = 0.05, start_ro
 
 
 def room_plan_spaces() -> dict:
-    """The observation spaces of a labelled floor plan: ``room_boxes`` (:data:`MAX_ROOMS`, 4) and
-    ``room_types`` (:data:`MAX_ROOMS`,) (see :func:`room_plan_observation`)."""
+    """The observation spaces of a labelled floor plan: ``room_boxes`` (:data:`~conceptfusion.tasks.MAX_ROOMS`, 4) and
+    ``room_types`` (:data:`~conceptfusion.tasks.MAX_ROOMS`,) (see :func:`room_plan_observation`)."""
     from gymnasium import spaces
 
     return {
@@ -133,7 +129,7 @@ def room_plan_observation(scene, where: str) -> dict[str, np.ndarray]:
     ``ROOM_TYPES[k]`` (0 past the last room).
 
     Raises:
-        SimError: more than :data:`MAX_ROOMS` rooms, or a room name not in :data:`ROOM_TYPES`.
+        SimError: more than :data:`~conceptfusion.tasks.MAX_ROOMS` rooms, or a room name not in :data:`~conceptfusion.tasks.ROOM_TYPES`.
     """
     from conceptfusion.errors import SimError
 
@@ -150,10 +146,3 @@ def room_plan_observation(scene, where: str) -> dict[str, np.ndarray]:
         types[i] = ROOM_TYPES.index(room.name) + 1
     return {"room_boxes": boxes, "room_types": types}
 
-
-def rooms_from_plan(obs: dict) -> list[tuple[str, np.ndarray]]:
-    """The ``(name, [x_min, y_min, x_max, y_max])`` rooms of a room plan observation (empty when the
-    observation has none)."""
-    if "room_types" not in obs:
-        return []
-    return [(ROOM_TYPES[int(t) - 1], np.asarray(b, np.float64)) for t, b in zip(obs["room_types"], obs["room_boxes"]) if int(t) > 0]

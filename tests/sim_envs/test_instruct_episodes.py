@@ -15,7 +15,7 @@ from conceptfusion.errors import SimError
 from sim_envs.envs.object_search import ObjectSearchEnv, box_distance_xy
 from sim_envs.scenes.descriptions import describable, referents
 from sim_envs.scenes.episodes import INSTRUCTION_KINDS, SCENES_ROOT, EpisodeFormatError, load_episodes
-from sim_envs.scenes.floorplan import ROOM_TYPES, rooms_from_plan
+from conceptfusion.tasks import ROOM_TYPES, rooms_from_plan
 from sim_envs.scenes.format import load_scene
 from sim_envs.scenes.instruct_episodes import FAR, GROUP_NEEDS, NEAR, instructions_of
 
