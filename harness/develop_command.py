@@ -35,6 +35,8 @@ TOOLS: dict[str, DevelopTool] = {
     "headline": DevelopTool("harness.report.headline", "measure the headline figures once on the sealed test set"),
     "sim-to-sim": DevelopTool("harness.report.sim_to_sim", "pair PyBullet runs of a suite's -pybullet variant with the "
                               "sealed MuJoCo records: the README's sim-to-sim table"),
+    "instruct": DevelopTool("harness.report.instruct", "the planner-in-the-loop comparison on instruct-v2 runs: the "
+                            "README's instruction table"),
     "train": DevelopTool("tower_training.train", "train, evaluate and export the embedded image tower (--world v2: the v2 tower)"),
     "fit": DevelopTool("tower_training.fit", "fit the v2 image tower on a training bundle, on any torch device"),
     "evaluate": DevelopTool("tower_training.evaluate", "retrieval metrics of the embedded image tower on labelled crops"),

@@ -59,7 +59,7 @@ from harness.report.links import ReportLinks
 from harness.report.document import Bullets, Cards, Cell, Figure, Heading, Paragraph, ReportDocument, Table, render_markdown
 from harness.report.labels import column_order, metric_label
 from harness.runner.results import RESULTS_FILE, ResultsFormatError, load_results, record_key, warn_record_problems
-from harness.report.stats import group_key, paired_comparison, per_category, seed_spread, summarize, within_noise
+from harness.report.stats import group_key, paired_comparison, per_category, seed_spread, summarize, wilson_interval, within_noise
 
 __all__ = ["write_report", "build_report", "write_markdown", "REPORT_FILE"]
 
@@ -421,6 +421,32 @@ def _sim_to_sim_section(records) -> list:
             Table(head, rows, name="sim-to-sim")]
 
 
+def _instruct_section(records) -> list:
+    """The planner-in-the-loop comparison (:mod:`harness.report.instruct`); empty when no
+    instruction suite ran."""
+    from harness.report.instruct import KINDS, SUITES, instruct_rows
+
+    if not any(r["suite"] in SUITES for r in records):
+        return []
+    rows = []
+    for s in instruct_rows(records):
+        lo, hi = wilson_interval(s.successes, s.n)
+        agent = f"{s.agent} (privileged)" if s.privileged else s.agent
+        kinds = [Cell(f"{k}/{n}" if n else "-", sort=k / n if n else -1.0) for k, n in (s.by_kind[kind] for kind in KINDS)]
+        diff = (Cell(f"{s.diff[0]:+.2f} [{s.diff[1]:+.2f}, {s.diff[2]:+.2f}]", sort=s.diff[0]), Cell(f"{s.diff[3]:.2g}", sort=s.diff[3])
+                ) if s.diff else (Cell("", sort=0.0), Cell("", sort=1.0))
+        cpu = Cell(f"{s.planner_share:.1%} / {s.listing_share:.1%}", sort=s.planner_share) if s.planner_share is not None \
+            else Cell("", sort=0.0)
+        rows.append((f"`{s.suite}`", s.encoder, agent, Cell(f"{s.successes}/{s.n}", sort=s.successes / s.n, interval=(
+            s.successes / s.n, lo, hi)), *kinds, Cell(f"{s.spl:.2f}", sort=s.spl), *diff, cpu))
+    head = ("suite", "perception", "agent", "success", *KINDS, "SPL", "map-planner - generic-planner [95% CI]", "McNemar p",
+            "planner / listing CPU")
+    return [Heading(2, "A language planner with and without the map"),
+            Paragraph("Instructions that name a need, a room or a relation: the same planner and navigator, told what the "
+                      "map holds (map-planner) or the instruction alone (generic-planner); the oracle is the upper bound."),
+            Table(head, rows, name="instruct")]
+
+
 def _heatmap_figures(items, w: _Writer) -> list:
     return report_figures.heatmap_figures(items, w)
 
@@ -483,6 +509,7 @@ def build_report(run_dirs_or_records, out_dir: str | os.PathLike, *,
         blocks += failure_section(run_items, suite, links)
         blocks.append(episode_table(run_items, suite, out, show_run=several_runs, links=links))
     blocks += _sim_to_sim_section(records)
+    blocks += _instruct_section(records)
     blocks += _heatmap_figures(items, w)
     blocks += [Heading(2, "Skipped"), Bullets(tuple(w.skipped) or ("nothing",))]
     return ReportDocument(title=title, out_dir=out, blocks=blocks, figures=w.figures, items=run_items)
