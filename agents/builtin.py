@@ -40,7 +40,7 @@ from agents.concept_map import ConceptMapper
 from agents.spec import AgentSpec, Option, register_agent
 from conceptfusion.perception.featurizer import SEARCH_PROPOSER, FrameFeaturizer, PerceptionSpec
 
-__all__ = ["make_mapper"]
+__all__ = ["make_mapper", "planner_options"]
 
 
 def make_mapper(
@@ -191,19 +191,26 @@ register_agent(AgentSpec(
     "in a chain it looks again for each later goal",
     {**_NAVIGATOR_OPTIONS, "hold_sighting": Option(bool, True), "look_again": Option(bool, True)}, twin_of="map-navigator",
 ))
-def _planner_agent(use_map_context: bool, encoder: str, proposer: str, seed: int, planner: str, planner_url: str,
-                   planner_model: str, replan_every: int, **navigator):
+def planner_options(planner: str, planner_url: str = "", planner_model: str = "") -> dict:
+    """The keyword arguments of :func:`~agents.instruct.planner.make_planner` from the planner agents'
+    options (a chat server's key from the environment variable ``CF_PLANNER_API_KEY``)."""
     import os
 
+    if planner == "chat":
+        key = os.environ.get("CF_PLANNER_API_KEY")
+        return {"base_url": planner_url, "model": planner_model, **({"api_key": key} if key else {})}
+    if planner_url or planner_model:
+        raise ValueError(f"planner_url and planner_model are for planner='chat', got planner={planner!r}")
+    return {}
+
+
+def _planner_agent(use_map_context: bool, encoder: str, proposer: str, seed: int, planner: str, planner_url: str,
+                   planner_model: str, replan_every: int, **navigator):
     from agents.instruct.agent import InstructionAgent, InstructionAgentConfig
     from agents.instruct.planner import make_planner
 
-    options = {}
-    if planner == "chat":
-        options = {"base_url": planner_url, "model": planner_model,
-                   **({"api_key": os.environ["CF_PLANNER_API_KEY"]} if os.environ.get("CF_PLANNER_API_KEY") else {})}
-    elif planner_url or planner_model:
-        raise ValueError(f"planner_url and planner_model are for planner='chat', got planner={planner!r}")
+    options = planner_options(planner, planner_url, planner_model)
+
     return InstructionAgent(_navigator(encoder, proposer, seed, 0, **navigator), make_planner(planner, **options),
                             InstructionAgentConfig(use_map_context=use_map_context, replan_every=replan_every))
 

@@ -213,6 +213,23 @@ def _check_options(config, suites: list[Suite]) -> None:
                 check(value)
             except (ValueError, TypeError) as exc:
                 raise HarnessError(f"--agent-option {key}={value}: {exc}") from exc
+    _check_planner_server(config.agent_kwargs)
+
+
+def _check_planner_server(kwargs: dict) -> None:
+    """With ``--agent-option planner=chat``: the planner is built (its URL and key checked) and its
+    server asked once for its models, so a bad URL, a refused key or a server that is not there
+    stops the run before any episode."""
+    if kwargs.get("planner") != "chat":
+        return
+    from agents.builtin import planner_options
+    from agents.instruct.planner import make_planner
+
+    try:
+        make_planner("chat", **planner_options("chat", str(kwargs.get("planner_url", "")),
+                                               str(kwargs.get("planner_model", "")))).check_server()
+    except (ValueError, TypeError) as exc:
+        raise HarnessError(f"--agent-option planner=chat: {exc}") from exc
 
 
 def validate_run_config(config: Any) -> None:

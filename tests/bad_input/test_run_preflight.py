@@ -109,3 +109,17 @@ def test_a_read_only_out_is_one_line(capsys, tmp_path):
                                                 "but this folder is not writable")
     finally:
         locked.chmod(0o700)
+
+
+@pytest.mark.parametrize("options, line", [
+    (["planner_url=ftp://example/v1"], "cfharness run: --agent-option planner=chat: "),
+    (["planner_url=http://127.0.0.1:9/v1", "planner_model=m"], "cfharness run: --agent-option planner=chat: "),
+])
+def test_a_chat_planner_server_is_checked_before_any_episode(capsys, tmp_path, options, line):
+    """A bad URL, or a server that is not there (port 9, discard), stops the run before the first episode."""
+    args = ["--suite", "instruct-v2-dev", "--agent", "map-planner", "--limit", "1", "--backend", "serial", "--no-report",
+            "--agent-option", "planner=chat", *[a for o in options for a in ("--agent-option", o)]]
+    rc = main(["run", *args, "--out", str(tmp_path / "run")])
+    err = capsys.readouterr().err
+    assert rc == 2 and err.startswith(line) and "Traceback" not in err, err
+    assert not (tmp_path / "run").exists()
