@@ -169,6 +169,20 @@ class FrameText:
             return "map: not asked yet", "dim"
         return "map: the agent keeps none", "dim"
 
+    def _planner(self, t: int) -> tuple[str, str] | None:
+        """An instruction agent's last planner call on or before frame ``t``: what it proposed and
+        the last line of its reasoning, or its failure (None: no planner, or no call yet)."""
+        calls = [c for c in (self.rec.header.get("planner") or {}).get("kept_calls", []) if int(c.get("step", 0)) <= t]
+        if not calls:
+            return None
+        call = calls[-1]
+        if call.get("failure"):
+            return f"planner failed: {call['failure']}"[:140], "bad"
+        why = str(call.get("reasoning", "")).strip().splitlines()
+        goals = ", ".join(call.get("goals") or []) or "nothing fits yet, explore"
+        return (f"planner (step {call.get('step')}): {goals}" + (f" - {why[-2] if len(why) > 1 else why[0]}" if why else ""))[:140], \
+            "answer"
+
     def _outcome(self) -> tuple[str, str]:
         """The last frame's verdict and why the episode stopped: the harness's stop reason when
         the recording has one, else the error, else whether the agent stopped or ran out of steps."""
@@ -193,12 +207,16 @@ class FrameText:
 
     def styled(self, t: int) -> list[tuple[str, str]]:
         """The lines under the panels on frame ``t`` with their tones (:data:`TONES`): the step;
-        how far from success; the map's answer; on the last frame the outcome."""
+        how far from success; the map's answer; an instruction agent's planner; on the last frame
+        the outcome."""
         h = self.rec.header
         lines = [(f"step {t} of {self.last}   agent {h.get('agent_label', h.get('agent'))}   episode {h.get('episode_id')}",
                   "dim")]
         lines += self._progress(t)
         lines.append(self._map(t))
+        planner = self._planner(t)
+        if planner is not None:
+            lines.append(planner)
         if t == self.last:
             lines.append(self._outcome())
         return lines

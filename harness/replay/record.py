@@ -96,8 +96,9 @@ this many bytes (:meth:`~conceptfusion.map.fusion.PointFusionMap.nbytes`): a tab
 to one point per voxel (:func:`~conceptfusion.map.thin.thin_map`; each kept point exact), and the
 recording's header says so. The recording keeps the map's answers either way."""
 
-OUTCOME_EXTRAS = ("goal", "stop_reason", "success_radius")
-"""Keys of a results record's ``extras`` that :meth:`EpisodeRecorder.finish` copies into the header."""
+OUTCOME_EXTRAS = ("goal", "stop_reason", "success_radius", "planner")
+"""Keys of a results record's ``extras`` that :meth:`EpisodeRecorder.finish` copies into the header
+(``planner``: an instruction agent's planner calls, shown on the frames from the step of each)."""
 
 _FRAME_WIDTH = 160
 _JPEG_QUALITY = 75

@@ -462,3 +462,22 @@ def test_render_missing_videos_replaces_an_mp4v_video(rearrange_run, tmp_path):
     frames, facts = _decode(old)
     assert facts["codec"] == "h264" and len(frames) == load_recording(src).num_frames
     assert render_missing_videos(tmp_path) == []
+
+
+def test_frames_show_the_planner_call_of_their_step():
+    """An instruction agent's planner calls (the record's ``extras["planner"]``, copied into the
+    recording's header) caption the frames from the step of each call; a failure reads as bad."""
+    from types import SimpleNamespace
+
+    from harness.replay.captions import FrameText
+    from harness.replay.record import OUTCOME_EXTRAS
+
+    assert "planner" in OUTCOME_EXTRAS
+    calls = [{"step": 0, "goals": [], "reasoning": "the map holds 3 objects\nnothing in the map fits yet: explore"},
+             {"step": 9, "goals": ["fork (in the kitchen)"], "reasoning": "12 of them in the kitchen\nfitting: fork\ngo to fork"},
+             {"step": 20, "goals": [], "reasoning": "", "failure": "server timed out"}]
+    text = SimpleNamespace(rec=SimpleNamespace(header={"planner": {"kept_calls": calls}}))
+    assert FrameText._planner(text, 5) == ("planner (step 0): nothing fits yet, explore - the map holds 3 objects", "answer")
+    assert FrameText._planner(text, 9) == ("planner (step 9): fork (in the kitchen) - fitting: fork", "answer")
+    assert FrameText._planner(text, 25) == ("planner failed: server timed out", "bad")
+    assert FrameText._planner(SimpleNamespace(rec=SimpleNamespace(header={})), 3) is None
