@@ -58,6 +58,7 @@ DEVELOPMENT_EPISODES: dict[str, dict[str, str]] = {
                   "validation": "validation-v2/search-episodes-v2.jsonl",
                   "dev2": "household-v2/episodes-v2.jsonl"},
     "chain-v2": {"calibration": "calibration-v2/chain-episodes-v2.jsonl"},
+    "instruct-v2": {"calibration": "calibration-v2/instruct-episodes-v2.jsonl"},
     "fetch-v2": {"calibration": "calibration-v2/fetch-episodes-v2.jsonl"},
     "rearrange-v2": {"calibration": "calibration-v2/rearrange-episodes-v2.jsonl",
                      "validation": "validation-v2/rearrange-episodes-v2.jsonl",

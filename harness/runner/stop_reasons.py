@@ -8,6 +8,10 @@ same for any agent, a user's included, and no agent ever sees it. The words and 
 **Every task**: a record with status ``timeout`` is ``timeout`` and one with status ``failed`` is
 ``error`` (:func:`status_stop_reason`); a success is ``reached``.
 
+**Instruction agents**: a failed search whose agent recorded that its language planner failed
+(``extras["planner"]["failure"]``: a server timeout, a malformed reply) is ``planner_failure``, the
+one word taken from what the agent records, since only it knows its planner failed.
+
 **Object search** (:func:`search_stop_reason`, facts in :class:`SearchEnd`; a chain is judged on
 the goal it was on when it ended). Distances are horizontal, from the base centre to an
 object's footprint (the distance the environment scores success by), and ``r`` is its success

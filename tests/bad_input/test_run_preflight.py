@@ -117,7 +117,7 @@ def test_a_read_only_out_is_one_line(capsys, tmp_path):
 ])
 def test_a_chat_planner_server_is_checked_before_any_episode(capsys, tmp_path, options, line):
     """A bad URL, or a server that is not there (port 9, discard), stops the run before the first episode."""
-    args = ["--suite", "instruct-v2-dev", "--agent", "map-planner", "--limit", "1", "--backend", "serial", "--no-report",
+    args = ["--suite", "instruct-v2", "--agent", "map-planner", "--limit", "1", "--backend", "serial", "--no-report",
             "--agent-option", "planner=chat", *[a for o in options for a in ("--agent-option", o)]]
     rc = main(["run", *args, "--out", str(tmp_path / "run")])
     err = capsys.readouterr().err

@@ -22,8 +22,9 @@ _SMALL = {"width": 64, "height": 48}
 
 
 # ---------------------------------------------------------------- the vocabulary and statuses
-def test_the_vocabulary_is_the_fixed_eight_words_each_with_a_label():
-    assert list(STOP_REASONS) == ["reached", "not_found", "wrong_object", "missed", "planner", "step_limit", "timeout", "error"]
+def test_the_vocabulary_is_the_fixed_nine_words_each_with_a_label():
+    assert list(STOP_REASONS) == ["reached", "not_found", "wrong_object", "missed", "planner", "step_limit", "planner_failure",
+                                  "timeout", "error"]
     assert all(isinstance(label, str) and label and label != word for word, label in STOP_REASONS.items())
 
 
