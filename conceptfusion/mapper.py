@@ -43,7 +43,8 @@ from scipy.spatial import cKDTree
 
 from conceptfusion.frames import RGBDFrame
 from conceptfusion.map.fusion import PointFusionMap
-from conceptfusion.map.query import NEGATIVE_PHRASES, QueryResult, locate, locate_batch, relative_scores, relevancy, vocabulary_margins
+from conceptfusion.map.query import (NEGATIVE_PHRASES, QueryResult, locate, locate_batch, regions_batch, relative_scores, relevancy,
+                                     vocabulary_margins)
 from conceptfusion.map.regions import Region, SupportTest
 from conceptfusion.names import did_you_mean
 from conceptfusion.perception.featurizer import FrameFeaturizer, PerceptionSpec, make_featurizer, score_floor_for
@@ -462,6 +463,29 @@ class ConceptMapper:
         return dataclasses.replace(
             res, found=False, regions=[], reason=f"the best region scores {best:.2f}, below the encoder's floor {c.min_score:.2f}"
         )
+
+    def present(self, texts: Sequence[str]) -> dict[str, Region]:
+        """The best region of every text :meth:`locate` finds (above the score floor), in one
+        batch over a fused map (:func:`~conceptfusion.map.query.regions_batch`: the hardest
+        negative taken once, texts no point scores above it for skipped): what listing the
+        objects a map holds needs, without the per-point arrays of full answers. Texts not found
+        are left out; nothing is added to :attr:`answers`."""
+        texts = list(dict.fromkeys(texts))
+        if self.config.semantic_views or not texts:
+            found = {t: self.locate(t) for t in texts}
+            return {t: r.best for t, r in found.items() if r.found}
+        c = self.config
+        regions = regions_batch(
+            self.map, np.stack([self.text_vector(t) for t in texts]), self.negatives(),
+            relevancy_threshold=c.relevancy_threshold, voxel_size=c.voxel_size, min_points=c.min_points,
+            support=SupportTest() if c.drop_support else None,
+        )
+        out = {}
+        for t, regs in zip(texts, regions):
+            kept = [r for r in regs if c.min_score is None or float(np.median(r.scores_n)) >= c.min_score]
+            if kept:
+                out[t] = kept[0]
+        return out
 
     def locate_many(self, texts: Sequence[str]) -> dict[str, QueryResult]:
         """:meth:`locate` for several descriptions, the same answers; on a fused map (no

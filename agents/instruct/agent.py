@@ -11,9 +11,9 @@ frontiers, OMPL planner, stop and presume rules) and are told the same labelled 
   and, when the navigator has explored everything without finding it, for the next.
 * **map context** (``use_map_context=True``, the paper's ConceptFusion planner): while it explores,
   every :attr:`InstructionAgentConfig.replan_every` steps in which the map grew, the agent lists
-  the objects its map holds (it asks the map for every phrase of the planner's vocabulary,
-  :func:`agents.instruct.offline.planner_vocabulary`, and keeps those found, each with its room
-  and region) and hands them to the planner with ``ask``, the spatial comparators on those
+  the objects its map holds (it asks the map for every phrase of the planner's vocabulary in one
+  batch, :meth:`~conceptfusion.mapper.ConceptMapper.present`, and keeps those found, each with its
+  room and region) and hands them to the planner with ``ask``, the spatial comparators on those
   regions. The planner's first goal is searched for as above; with no goal yet it explores on.
 
 A planner that fails (a server timeout, a malformed reply) ends the episode at once with a stop
@@ -33,6 +33,7 @@ from agents.instruct.planner import LanguagePlanner
 from agents.instruct.proposal import GoalQuery, MapObject, PlannerContext, Proposal
 from agents.navigator import MapNavigator, search_action
 from conceptfusion.map.query import QueryResult
+from conceptfusion.map.regions import Region
 from conceptfusion.spatial.comparators import closest_distance, get_comparator
 from conceptfusion.tasks import rooms_from_plan
 
@@ -111,7 +112,7 @@ class InstructionAgent:
         self._calls: list[dict] = []
         self._planner_s = 0.0
         self._context_s = 0.0
-        self._objects: dict[str, tuple[MapObject, QueryResult]] = {}
+        self._objects: dict[str, tuple[MapObject, Region]] = {}
 
     # -- what the planner is told -------------------------------------------------------------
 
@@ -120,16 +121,15 @@ class InstructionAgent:
         from agents.instruct.offline import planner_vocabulary
 
         t0 = time.perf_counter()
-        found: dict[str, tuple[MapObject, QueryResult]] = {}
+        found: dict[str, tuple[MapObject, Region]] = {}
         names = planner_vocabulary()[0]
-        answers = self.mapper.locate_many([map_phrase(n) for n in names])
+        regions = self.mapper.present([map_phrase(n) for n in names])
         for name in names:
-            res = answers[map_phrase(name)]
-            if res.found:
-                pts = res.best.points_n3
-                pos = tuple(float(v) for v in np.median(pts, axis=0))
-                score = float(np.median(res.best.scores_n))
-                found[name] = (MapObject(name, pos, _room_of(pos[:2], self._rooms), score), res)
+            region = regions.get(map_phrase(name))
+            if region is not None:
+                pos = tuple(float(v) for v in np.median(region.points_n3, axis=0))
+                score = float(np.median(region.scores_n))
+                found[name] = (MapObject(name, pos, _room_of(pos[:2], self._rooms), score), region)
         self._objects = found
         self._context_s += time.perf_counter() - t0
         return tuple(o for o, _ in found.values())
@@ -138,7 +138,7 @@ class InstructionAgent:
         """A comparator on two listed map objects (None: either is not in the map, or undecided)."""
         if a not in self._objects or b not in self._objects:
             return None
-        ra, rb = self._objects[a][1].best, self._objects[b][1].best
+        ra, rb = self._objects[a][1], self._objects[b][1]
         answer = closest_distance(ra, rb) if function == "howFar" else get_comparator(function)(ra, rb)
         return answer.value
 

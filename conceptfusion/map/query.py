@@ -36,6 +36,7 @@ __all__ = [
     "connected_regions",
     "locate",
     "locate_batch",
+    "regions_batch",
     "vocabulary_margins",
     "click_query_vector",
 ]
@@ -244,6 +245,54 @@ def locate_batch(
             out.append(_answer(len(map_), points, normals, scores, neg_scores, relative_threshold=relative_threshold,
                                relevancy_threshold=relevancy_threshold, temperature=temperature, voxel_size=voxel_size,
                                min_points=min_points, support=support))
+    return out
+
+
+def regions_batch(
+    map_,
+    queries_qd: np.ndarray,
+    negatives_kd: np.ndarray,
+    *,
+    chunk: int = 16,
+    relative_threshold: float = 0.6,
+    relevancy_threshold: float = 0.6,
+    temperature: float = 10.0,
+    voxel_size: float = 0.03,
+    min_points: int = 20,
+    support: SupportTest | None = SupportTest(),
+) -> list[list[Region]]:
+    """The regions :func:`locate` would find for each query (empty: not found), without the
+    per-point arrays: what listing the objects a map holds needs. A query that no point scores
+    above its hardest negative for (relevancy below ``relevancy_threshold`` everywhere) is
+    answered empty without clustering; the hardest negative is taken once for all queries.
+
+    Shape:
+        ``queries_qd`` (Q, d), ``negatives_kd`` (K >= 1, d) -> Q lists of regions, best first.
+    """
+    qs = as_float_array("queries_qd", np.asarray(queries_qd), shape=(None, map_.feature_dim)).astype(np.float32)
+    neg = as_float_array("negatives_kd", np.asarray(negatives_kd), shape=(None, map_.feature_dim)).astype(np.float32)
+    if len(neg) == 0:
+        raise ShapeError("negatives_kd: expected at least one negative phrase's embedding, got 0")
+    if isinstance(chunk, bool) or not isinstance(chunk, int) or chunk < 1:
+        raise ValueError(f"chunk: expected an integer >= 1, got {chunk!r}")
+    neg_max = map_.scores_many(neg).max(axis=0)
+    # relevancy >= threshold  <=>  T * (neg_max - s) <= log(1 / threshold - 1): a bound on s per point
+    bound = neg_max + np.float32(-np.log(1.0 / relevancy_threshold - 1.0) / temperature) if 0 < relevancy_threshold < 1 else None
+    points = normals = None
+    out: list[list[Region]] = []
+    for start in range(0, len(qs), chunk):
+        for scores in map_.scores_many(qs[start:start + chunk]):
+            with np.errstate(invalid="ignore"):
+                if bound is not None and not np.any(scores >= bound - 1e-6):
+                    out.append([])
+                    continue
+            if points is None:
+                points = map_.points
+                normals = map_.normals if support is not None else None
+            res = _answer(len(map_), points, normals, scores, neg_max[None], relative_threshold=relative_threshold,
+                          relevancy_threshold=relevancy_threshold, temperature=temperature, voxel_size=voxel_size,
+                          min_points=min_points, support=support)
+            out.append(res.regions)
     return out
 
 
