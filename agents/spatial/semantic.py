@@ -5,8 +5,9 @@ How a question is read (:meth:`SemanticParser.parse`):
 1. **Fast path.** The pattern grammar (:func:`agents.spatial.grammar.parse_question`) is tried on
    the question as written; its call is kept when it is *confident*: both arguments are clean
    object names (no auxiliary, pronoun, wh-word, relation word, misspelt relation word, inner
-   determiner or punctuation) and a location relation is not hypothetical ("can X be stored in
-   Y" is a fitting question).
+   determiner or punctuation; a noun that is also a relation word may end a compound name,
+   "jenga tower", and a possessive may open one, "cat's toy") and a location relation is not
+   hypothetical ("can X be stored in Y" is a fitting question).
 2. **Words.** Tokens (:func:`agents.spatial.lexicon.tokenize`), misspelt relation words repaired
    against the text tower's word list (:func:`~agents.spatial.lexicon.repair_typos`), the text
    split into sentences, each sentence stripped of greetings and inquiry wrappers, viewpoint
@@ -41,6 +42,8 @@ import numpy as np
 from agents.spatial.grammar import parse_question
 from agents.spatial.lexicon import (
     AUXILIARIES,
+    BASE_VERBS,
+    DO_SUPPORT,
     DETERMINERS,
     FUNCTION_WORDS,
     INQUIRY_VERBS,
@@ -48,6 +51,7 @@ from agents.spatial.lexicon import (
     PRONOUNS,
     RELATION_WORDS,
     MODIFIERS,
+    NOUN_HEADS,
     SELF_TOKEN,
     WH_WORDS,
     Phrase,
@@ -169,19 +173,32 @@ _LOCATION = ("isContained", "onTopOf", "under")
 
 
 def _confident(res: ParseResult, tokens: list[str], known: frozenset[str]) -> bool:
+    """Whether the grammar's call ``res`` on ``tokens`` stands as it is (see the module doc).
+
+    A word that is also a relation word or an inquiry verb makes an argument doubtful, except a
+    noun of :data:`~agents.spatial.lexicon.NOUN_HEADS` ending a compound name ("jenga tower",
+    "tape measure") where it cannot be the verb (no do-support, or a base verb follows it); a
+    possessive ("cat's toy") is part of a name when a word follows it.
+    """
     if not res.ok:
         return False
     if res.function in _LOCATION and "be" in tokens:
         return False  # "can the stroller be stored inside the closet": hypothetical -> fitting
+    opener = strip_lead_in(tokens)[:1]
+    do_support = bool(opener) and opener[0] in DO_SUPPORT
     for arg in res.arguments:
         if arg == SELF_REFERENCE:
             continue
         words = arg.split()
         for k, w in enumerate(words):
-            if not re.fullmatch(r"[a-z0-9]+", w):
+            last = k == len(words) - 1
+            if not (re.fullmatch(r"[a-z0-9]+", w) or (not last and re.fullmatch(r"[a-z0-9]+'s", w))):
                 return False
             if w in DETERMINERS and not (k > 0 and words[k - 1] == "of"):
                 return False
+            if last and k > 0 and w in NOUN_HEADS and words[k - 1] not in _SUSPICIOUS | DETERMINERS and (
+                    not do_support or _next_token(tokens, words) in BASE_VERBS):
+                continue  # "the jenga tower left of ...": the compound's head noun, not a relation
             if w in _SUSPICIOUS and not (w in AUXILIARIES and (k > 0 or k + 1 < len(words) and words[k + 1] == "of")):
                 return False
             if w in MODIFIERS and w in RELATION_WORDS and k == len(words) - 1:
@@ -189,6 +206,15 @@ def _confident(res: ParseResult, tokens: list[str], known: frozenset[str]) -> bo
             if w not in known and repair_typos([w], known) != [w]:
                 return False
     return True
+
+
+def _next_token(tokens: list[str], words: list[str]) -> str:
+    """The token after the first run of ``words`` in ``tokens`` ("" when none follows)."""
+    n = len(words)
+    for i in range(len(tokens) - n + 1):
+        if tokens[i:i + n] == words:
+            return tokens[i + n] if i + n < len(tokens) else ""
+    return ""
 
 
 # --- sentences to calls ----------------------------------------------------------------------
