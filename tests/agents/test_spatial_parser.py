@@ -157,7 +157,9 @@ def test_offline_parser_accuracy_on_the_question_set():
     parser = PatternParser()
     wrong = []
     for row in rows:
-        got = parser.parse(row["question"]).signature
+        res = parser.parse(row["question"])
+        assert res.confidence == (1.0 if res.ok else 0.0)  # the grammar has no graded doubt
+        got = res.signature
         if got != row["expected"]:
             wrong.append(f"{row['question']!r}: got {got}, expected {row['expected']}")
     accuracy = 1.0 - len(wrong) / len(rows)
@@ -169,9 +171,22 @@ def test_offline_parser_accuracy_on_the_question_set():
 
 def test_parse_result_invariants():
     ok = parsed("howFar", "chair", "sofa")
-    assert ok.ok and ok.signature == "howFar(chair, sofa)" and ok.reason == ""
+    assert ok.ok and ok.signature == "howFar(chair, sofa)" and ok.reason == "" and ok.confidence == 1.0
     bad = cannot_parse("no objects")
-    assert not bad.ok and bad.signature is None
+    assert not bad.ok and bad.signature is None and bad.confidence == 0.0
+    assert parsed("under", "rug", "bed", confidence=0.75).confidence == 0.75
+    assert ParseResult(function="under", arguments=("rug", "bed")).confidence == 1.0
+    assert ParseResult(function=None, arguments=None, reason="no objects") == bad
+    with pytest.raises(ValueError, match=r"confidence must be in \[0, 1\], got 1.5"):
+        parsed("howFar", "chair", "sofa", confidence=1.5)
+    with pytest.raises(ValueError, match=r"confidence must be in \[0, 1\], got nan"):
+        parsed("howFar", "chair", "sofa", confidence=float("nan"))
+    with pytest.raises(TypeError, match="confidence must be a number, got str"):
+        parsed("howFar", "chair", "sofa", confidence="high")
+    with pytest.raises(ValueError, match="a parsed call needs a confidence above 0"):
+        parsed("howFar", "chair", "sofa", confidence=0.0)
+    with pytest.raises(ValueError, match="a failed parse has confidence 0, got 0.5"):
+        ParseResult(function=None, arguments=None, reason="no objects", confidence=0.5)
     with pytest.raises(ValueError, match="needs a reason"):
         ParseResult(function=None, arguments=None)
     with pytest.raises(ValueError, match="unknown function 'isNear'"):
@@ -195,6 +210,7 @@ def test_parse_result_invariants():
 )
 def test_parse_signature_accepts(text, signature):
     assert parse_signature(text).signature == signature
+    assert parse_signature(text).confidence == 1.0
 
 
 @pytest.mark.parametrize(
