@@ -49,6 +49,7 @@ __all__ = [
     "split_pieces",
     "strip_lead_in",
     "chunk",
+    "looks_like_participle",
     "skeleton",
     "damerau_distance",
 ]
@@ -82,7 +83,7 @@ RELATION_WORDS = frozenset(
     """
     left right leftward leftwards rightward rightwards lefthand righthand hand side sides top
     bottom front back middle centre center
-    far farther further farthest furthest close closer closest near nearer nearest distant
+    far farther further farthest furthest close closer closest near nearer nearest distant adjacent
     distance distances gap separation spacing space room length long apart away
     big bigger biggest large larger largest small smaller smallest tall taller short shorter
     wide wider narrow narrower huge tiny little massive enormous giant bulky bulkier tinier
@@ -93,7 +94,7 @@ RELATION_WORDS = frozenset(
     inside underneath beneath below above atop upon onto within neath
     placed put stored kept located situated positioned set sitting sits sit sat resting rests
     rest lying lies lie laid standing stands stacked piled perched balanced draped hung hanging
-    hangs tucked hidden hiding stuck packed enclosed left sleeping leaning mounted parked
+    hangs tucked hidden hiding stuck packed enclosed left sleeping leaning mounted parked thrown flung strewn
     go goes going slide squeeze stuff store keep pack place
     anywhere somewhere everywhere still currently really actually exactly just now already
     also right roughly approximately about precisely
@@ -114,10 +115,11 @@ BASE_VERBS = frozenset(
 # Relation words and inquiry verbs that are also nouns heading a compound object name.
 NOUN_HEADS = frozenset("tower stand rest set pack space room measure figure".split())
 """Words that end an object name when they follow a content word ("jenga tower", "umbrella
-stand", "foot rest", "knife set", "ice pack", "storage space", "living room", "tape measure",
-"action figure"), although they also carry a relation or an inquiry elsewhere ("towers over",
-"figure out"). Under do-support or a modal, the subject's last such word is its verb instead
-("does the wardrobe tower over the bed"), unless a verb follows it ("can the jenga tower fit ...")."""
+stand", "foot rest", "ice pack", "storage space", "living room", "tape measure", "action
+figure", "knife set"), although they also carry a relation or an inquiry elsewhere ("towers
+over", "figure out"). Under do-support or a modal, the subject's last such word is its verb
+instead ("does the wardrobe tower over the bed"), unless a verb follows it ("can the jenga tower
+fit ..."). Known ambiguity: "is the frame set on the shelf" reads "frame set" as the name."""
 DO_SUPPORT = frozenset("does do did will would can could should might may".split())
 """Openers after which the subject is followed by a base verb ("does the rug look ...")."""
 # -ing words that are nouns; any other -ing word of 6+ letters is read as a verb/modifier.
@@ -385,14 +387,22 @@ def _is_content(tok: str) -> bool:
     """Whether ``tok`` may be part of an object name (a noun or adjective, not a relation word)."""
     if not tok.isalnum() or tok in FUNCTION_WORDS or tok in RELATION_WORDS or tok in INQUIRY_VERBS:
         return False
-    if len(tok) > 5 and tok.endswith("ing") and tok not in ING_NOUNS:
-        return False
-    return True
+    return not looks_like_participle(tok)
+
+
+_ED_NOUN_ENDINGS = ("bed", "eed", "sled")  # "waterbed", "tweed", "bobsled"; "-shed" is mostly a verb ("stashed")
+
+
+def looks_like_participle(tok: str) -> bool:
+    """An -ing word of 6+ letters that is not a noun ("leaning"), or an -ed word of 5+ letters
+    that is not a relation word nor a noun ending ("sealed", "stashed"; not "daybed"): a verb or
+    a modifier, which may open an object name ("the stuffed toy") but never end one."""
+    return (len(tok) > 5 and tok.endswith("ing") and tok not in ING_NOUNS) or (
+        len(tok) > 4 and tok.endswith("ed") and tok not in RELATION_WORDS and not tok.endswith(_ED_NOUN_ENDINGS))
 
 
 def _is_modifier(tok: str) -> bool:
-    return tok in MODIFIERS or (len(tok) > 5 and tok.endswith("ing") and tok not in ING_NOUNS) or (
-        len(tok) > 4 and tok.endswith("ed") and tok not in RELATION_WORDS)
+    return tok in MODIFIERS or looks_like_participle(tok)
 
 
 _RELATION_NOUNS = frozenset("distance distances gap separation spacing space room size volume length".split())

