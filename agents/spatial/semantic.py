@@ -109,9 +109,13 @@ class SemanticParserConfig:
     """JSON file of exemplar phrasings (see :data:`RELATIONS_PATH`)."""
     use_fast_path: bool = True
     """Try the pattern grammar first and keep its confident calls."""
-    min_confidence: float = 0.0
-    """Least confidence of a call; below it the parser refuses. 0.0 turns the refusal off (how
-    development rows are scored to derive it, :mod:`agents.spatial.calibration`)."""
+    min_confidence: float = 0.901
+    """Least confidence of a call; below it the parser refuses. Derived by
+    :func:`agents.spatial.calibration.calibrate_threshold` from the development questions (the
+    rule is in that module; ``tests/agents/test_spatial_parser.py`` recomputes it): the least
+    grid value above the one semantic answer at 0.900 that is wrong, after the single wrong
+    answer at 1.0 ("picture frame set") uses the allowance. 0.0 turns the refusal off (how the
+    rows are scored for it)."""
 
     def __post_init__(self) -> None:
         for name in ("min_similarity", "min_margin"):
