@@ -458,6 +458,41 @@ def test_threshold_default_is_derived_from_the_development_sets(development_scor
     assert confidently_wrong_rate(development_scores, threshold - 1 / GRID_STEPS) > MAX_CONFIDENTLY_WRONG_RATE
 
 
+# -- the sealed set, measured once after the change (issue 43, item 4) -----------------------------
+
+SEALED = DATA_DIR / "spatial_questions_fresh3.jsonl"
+SEALED_EXACT_FLOOR = 208
+"""Exact answers of the default semantic parser on the 244 sealed rows, measured once (85.2%)."""
+SEALED_WRONG_CEILING = 5
+"""Confidently-wrong answers there, measured once (2.0%)."""
+
+
+@pytest.fixture(scope="module")
+def sealed_figures(semantic):
+    """Exact and confidently-wrong counts of the default parser on the sealed set; no row leaves here."""
+    scored = score_questions(semantic, _load(SEALED))
+    exact = sum(res.signature == expected for res, expected in scored)
+    return len(scored), exact, round(confidently_wrong_rate(scored) * len(scored))
+
+
+def test_sealed_set_figures_hold(sealed_figures):
+    """Recomputes the one measurement of the sealed fresh3 set (244 rows, written before this
+    change, commit 539ede1) with the default (semantic) parser and holds it at its measured level:
+    208/244 exact (85.2%), 5/244 confidently wrong (2.0%). SHORTFALL: the targets were >= 98%
+    exact and <= 0.5% confidently wrong; both are missed (see the xfail test below and
+    docs/measurement-history.md). Only totals are compared, so a failure shows no question."""
+    n, exact, wrong = sealed_figures
+    assert n == 244
+    assert exact >= SEALED_EXACT_FLOOR, f"exact {exact}/{n} fell below the measured {SEALED_EXACT_FLOOR}"
+    assert wrong <= SEALED_WRONG_CEILING, f"confidently wrong {wrong}/{n} rose above the measured {SEALED_WRONG_CEILING}"
+
+
+@pytest.mark.xfail(strict=True, reason="measured once: 2.0% confidently wrong (target 0.5%), 85.2% exact (target 98%)")
+def test_sealed_set_meets_the_targets(sealed_figures):
+    n, exact, wrong = sealed_figures
+    assert wrong / n <= 0.005 and exact / n >= 0.98
+
+
 def test_semantic_parser_is_deterministic(semantic):
     questions = ["Is the rug dwarfed by the bed?", "Is the mop to the lfet of the bucket?", "Count the cups."]
     first = [semantic.parse(q) for q in questions]
