@@ -309,7 +309,11 @@ def parse_question(question: str) -> ParseResult:
 
 @dataclass(frozen=True)
 class PatternParser:
-    """The offline :class:`~agents.spatial.signature.SpatialQuestionParser` (no model, no network)."""
+    """The offline :class:`~agents.spatial.signature.SpatialQuestionParser` (no model, no network).
+
+    A call carries confidence 1.0: the patterns have no graded doubt (the semantic parser's fast
+    path adds one, :mod:`agents.spatial.semantic`).
+    """
 
     def parse(self, question: str) -> ParseResult:
         """See :func:`parse_question`."""

@@ -36,6 +36,8 @@ __all__ = [
     "RELATION_WORDS",
     "MODIFIERS",
     "BASE_VERBS",
+    "NOUN_HEADS",
+    "DO_SUPPORT",
     "INQUIRY_VERBS",
     "RELATION_VOCABULARY",
     "REAL_WORD_SLIPS",
@@ -47,6 +49,7 @@ __all__ = [
     "split_pieces",
     "strip_lead_in",
     "chunk",
+    "looks_like_participle",
     "skeleton",
     "damerau_distance",
 ]
@@ -80,7 +83,7 @@ RELATION_WORDS = frozenset(
     """
     left right leftward leftwards rightward rightwards lefthand righthand hand side sides top
     bottom front back middle centre center
-    far farther further farthest furthest close closer closest near nearer nearest distant
+    far farther further farthest furthest close closer closest near nearer nearest distant adjacent
     distance distances gap separation spacing space room length long apart away
     big bigger biggest large larger largest small smaller smallest tall taller short shorter
     wide wider narrow narrower huge tiny little massive enormous giant bulky bulkier tinier
@@ -91,7 +94,7 @@ RELATION_WORDS = frozenset(
     inside underneath beneath below above atop upon onto within neath
     placed put stored kept located situated positioned set sitting sits sit sat resting rests
     rest lying lies lie laid standing stands stacked piled perched balanced draped hung hanging
-    hangs tucked hidden hiding stuck packed enclosed left sleeping leaning mounted parked
+    hangs tucked hidden hiding stuck packed enclosed left sleeping leaning mounted parked thrown flung strewn
     go goes going slide squeeze stuff store keep pack place
     anywhere somewhere everywhere still currently really actually exactly just now already
     also right roughly approximately about precisely
@@ -109,6 +112,16 @@ BASE_VERBS = frozenset(
     "stand sit lie rest hang lean go belong stay look seem appear fit take have hold contain "
     "need fall".split()
 )
+# Relation words and inquiry verbs that are also nouns heading a compound object name.
+NOUN_HEADS = frozenset("tower stand rest set pack space room measure figure".split())
+"""Words that end an object name when they follow a content word ("jenga tower", "umbrella
+stand", "foot rest", "ice pack", "storage space", "living room", "tape measure", "action
+figure", "knife set"), although they also carry a relation or an inquiry elsewhere ("towers
+over", "figure out"). Under do-support or a modal, the subject's last such word is its verb
+instead ("does the wardrobe tower over the bed"), unless a verb follows it ("can the jenga tower
+fit ..."). Known ambiguity: "is the frame set on the shelf" reads "frame set" as the name."""
+DO_SUPPORT = frozenset("does do did will would can could should might may".split())
+"""Openers after which the subject is followed by a base verb ("does the rug look ...")."""
 # -ing words that are nouns; any other -ing word of 6+ letters is read as a verb/modifier.
 ING_NOUNS = frozenset(
     """painting ceiling building clothing railing bedding drawing wedding stuffing icing frosting
@@ -374,18 +387,30 @@ def _is_content(tok: str) -> bool:
     """Whether ``tok`` may be part of an object name (a noun or adjective, not a relation word)."""
     if not tok.isalnum() or tok in FUNCTION_WORDS or tok in RELATION_WORDS or tok in INQUIRY_VERBS:
         return False
-    if len(tok) > 5 and tok.endswith("ing") and tok not in ING_NOUNS:
-        return False
-    return True
+    return not looks_like_participle(tok)
+
+
+_ED_NOUN_ENDINGS = ("bed", "eed", "sled")  # "waterbed", "tweed", "bobsled"; "-shed" is mostly a verb ("stashed")
+
+
+def looks_like_participle(tok: str) -> bool:
+    """An -ing word of 6+ letters that is not a noun ("leaning"), or an -ed word of 5+ letters
+    that is not a relation word nor a noun ending ("sealed", "stashed"; not "daybed"): a verb or
+    a modifier, which may open an object name ("the stuffed toy") but never end one."""
+    return (len(tok) > 5 and tok.endswith("ing") and tok not in ING_NOUNS) or (
+        len(tok) > 4 and tok.endswith("ed") and tok not in RELATION_WORDS and not tok.endswith(_ED_NOUN_ENDINGS))
 
 
 def _is_modifier(tok: str) -> bool:
-    return tok in MODIFIERS or (len(tok) > 5 and tok.endswith("ing") and tok not in ING_NOUNS) or (
-        len(tok) > 4 and tok.endswith("ed") and tok not in RELATION_WORDS)
+    return tok in MODIFIERS or looks_like_participle(tok)
 
 
 _RELATION_NOUNS = frozenset("distance distances gap separation spacing space room size volume length".split())
-_DO_SUPPORT = frozenset("does do did will would can could should might may".split())
+
+
+def _is_head(tokens: list[str], j: int, start: int) -> bool:
+    """Whether ``tokens[j]`` is a :data:`NOUN_HEADS` noun ending a name that starts at ``start``."""
+    return tokens[j] in NOUN_HEADS and j > start and _is_content(tokens[j - 1])
 
 
 def chunk(tokens: list[str]) -> list[Phrase]:
@@ -393,12 +418,15 @@ def chunk(tokens: list[str]) -> list[Phrase]:
 
     A determiner opens a phrase; modifiers may follow it only when a content word comes after
     them ("the big box" but not "the left of"); "of" joins two phrases when the first ends in a
-    content word ("glass of water", not "left of"). After do-support or a modal ("does the rug
-    look larger"), a base verb at the end of the first phrase is left out of it.
+    content word ("glass of water", not "left of"); a word of :data:`NOUN_HEADS` right after a
+    content word stays in the phrase ("the jenga tower", "the tape measure"). After do-support or
+    a modal ("does the rug look larger", "does the wardrobe tower over"), a base verb or noun head
+    at the end of the first phrase is left out of it, unless a base verb follows ("can the jenga
+    tower fit").
     """
     phrases: list[Phrase] = []
     i, n = 0, len(tokens)
-    do_support = bool(tokens) and tokens[0] in _DO_SUPPORT
+    do_support = bool(tokens) and tokens[0] in DO_SUPPORT
     while i < n:
         tok = tokens[i]
         if tok == SELF_TOKEN:
@@ -413,7 +441,7 @@ def chunk(tokens: list[str]) -> list[Phrase]:
             nxt = tokens[j + 1] if j + 1 < n else ""
             if nxt == "than" or (nxt == "enough" and j > start):
                 break  # a comparative ("hotter than", "wide enough"), not part of the name
-            if _is_content(t):
+            if _is_content(t) or _is_head(tokens, j, start):
                 j += 1
             elif t == "can" and j > start and not (_is_content(nxt) or nxt in DETERMINERS or nxt in PRONOUNS
                                                     or nxt in BASE_VERBS or nxt in RELATION_WORDS or nxt == "be"):
@@ -427,13 +455,15 @@ def chunk(tokens: list[str]) -> list[Phrase]:
             else:
                 break
         end = j
-        while end > start and not _is_content(tokens[end - 1]) and tokens[end - 1] != "can":
+        while end > start and not (_is_content(tokens[end - 1]) or tokens[end - 1] == "can"
+                                   or _is_head(tokens, end - 1, start)):
             end -= 1
         if end > start and end < n and tokens[end] in _RELATION_NOUNS and (det or end - start == 1):
             i = end  # "the shortest distance": a modifier of the relation noun, not an object
             continue
         if end > start:
-            if do_support and not phrases and end - start >= 2 and tokens[end - 1] in BASE_VERBS:
+            if do_support and not phrases and end - start >= 2 and tokens[end - 1] in BASE_VERBS | NOUN_HEADS \
+                    and not (end < n and tokens[end] in BASE_VERBS):
                 end -= 1  # "does the coat rack stand ..." -> the base verb is not part of the subject
             phrases.append(Phrase(i if det else start, end, " ".join(tokens[start:end]), not det))
             i = end

@@ -13,6 +13,10 @@ integer; :func:`~conceptfusion.strict_json.loads_strict`) gives a cannot-parse
 after at most ``1 + max_retries`` attempts each bounded by ``timeout_s``. It never raises for
 server behaviour and never waits without bound.
 
+Confidence: a reply that parses as one call gives that call with confidence 1.0 (the server is
+asked for the call only, and a chat reply carries no measure of doubt to read; a backend that
+returns token log-probabilities could give a graded one). A failure has confidence 0.
+
 One attempt is one HTTP request under one wall-clock deadline (:func:`agents.llm_http.request`).
 Settings are checked when the config is built (:class:`~conceptfusion.errors.AgentError`).
 """

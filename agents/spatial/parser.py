@@ -10,6 +10,11 @@ The public face of the parsers:
 * :class:`LLMParser` - the paper's approach: its prompt sent to an OpenAI-compatible
   chat-completions server (:mod:`agents.spatial.llm`).
 * :data:`PARSERS` / :func:`make_parser` - the lookup table of backends by name.
+* :func:`calibrate_threshold` - the semantic parser's refusal threshold from development
+  questions (:mod:`agents.spatial.calibration`).
+
+Every result carries a ``confidence`` in [0, 1] (0 when it is not a call); see
+:class:`ParseResult`.
 
 The function names are the paper's eight (:data:`conceptfusion.spatial.comparators.COMPARATOR_NAMES`);
 ``conceptfusion.spatial.comparators.get_comparator(result.function)`` runs the call on two regions.
@@ -19,6 +24,7 @@ from __future__ import annotations
 
 from typing import Callable
 
+from agents.spatial.calibration import calibrate_threshold, confidently_wrong_rate, score_questions
 from agents.spatial.grammar import PatternParser, normalise_question, parse_question
 from agents.spatial.llm import PAPER_PROMPT, LLMParser, LLMParserConfig
 from agents.spatial.semantic import SemanticParser, SemanticParserConfig
@@ -51,6 +57,9 @@ __all__ = [
     "clean_noun_phrase",
     "parsed",
     "cannot_parse",
+    "calibrate_threshold",
+    "confidently_wrong_rate",
+    "score_questions",
 ]
 
 

@@ -2,11 +2,13 @@
 
 A parse is ONE comparator call: a function name among the paper's eight 3DSCs
 (``conceptfusion.spatial.comparators.COMPARATOR_NAMES``) and two object noun phrases, e.g.
-``howFar(chair, sofa)``; or a "cannot parse" result with a reason.
+``howFar(chair, sofa)``, with the parser's confidence in it; or a "cannot parse" result with a
+reason (confidence 0).
 """
 
 from __future__ import annotations
 
+import math
 import re
 from dataclasses import dataclass
 from typing import Protocol
@@ -40,8 +42,25 @@ class ParseResult:
     """The two object noun phrases (lower case, no articles), or ``None``."""
     reason: str = ""
     """Why the question could not be parsed (empty on success, never empty on failure)."""
+    confidence: float | None = None
+    """How sure the parser is of the call, in [0, 1]: in (0, 1] for a call, 0.0 for a failure.
+    Left out (``None``), it becomes 1.0 for a call and 0.0 for a failure. What it means per
+    backend: 1.0 for a call the grammar reads outright or a reply that names the call (pattern,
+    LLM); for the semantic parser's relation classes, the probability of the chosen class
+    (:mod:`agents.spatial.semantic`)."""
 
     def __post_init__(self) -> None:
+        if self.confidence is None:
+            object.__setattr__(self, "confidence", 0.0 if self.function is None else 1.0)
+        if isinstance(self.confidence, bool) or not isinstance(self.confidence, (int, float)):
+            raise TypeError(f"ParseResult: confidence must be a number, got {type(self.confidence).__name__}")
+        if math.isnan(self.confidence) or not 0.0 <= self.confidence <= 1.0:
+            raise ValueError(f"ParseResult: confidence must be in [0, 1], got {self.confidence!r}")
+        object.__setattr__(self, "confidence", float(self.confidence))
+        if self.function is None and self.confidence != 0.0:
+            raise ValueError(f"ParseResult: a failed parse has confidence 0, got {self.confidence!r}")
+        if self.function is not None and self.confidence == 0.0:
+            raise ValueError("ParseResult: a parsed call needs a confidence above 0")
         if (self.function is None) != (self.arguments is None):
             raise ValueError("ParseResult: function and arguments must both be set or both be None")
         if self.function is not None and self.function not in COMPARATOR_NAMES:
@@ -74,14 +93,14 @@ class SpatialQuestionParser(Protocol):
         ...
 
 
-def parsed(function: str, object1: str, object2: str) -> ParseResult:
-    """A successful :class:`ParseResult`."""
-    return ParseResult(function=function, arguments=(object1, object2))
+def parsed(function: str, object1: str, object2: str, confidence: float = 1.0) -> ParseResult:
+    """A successful :class:`ParseResult` (``confidence`` in (0, 1], 1.0 unless said)."""
+    return ParseResult(function=function, arguments=(object1, object2), confidence=confidence)
 
 
 def cannot_parse(reason: str) -> ParseResult:
-    """A failed :class:`ParseResult` carrying ``reason``."""
-    return ParseResult(function=None, arguments=None, reason=reason)
+    """A failed :class:`ParseResult` carrying ``reason`` (confidence 0)."""
+    return ParseResult(function=None, arguments=None, reason=reason, confidence=0.0)
 
 
 # ---------------------------------------------------------------------------------------------
@@ -165,6 +184,8 @@ def parse_signature(text: str) -> ParseResult:
     The first ``name(...)`` in ``text`` is taken. The name must be one of the eight (case is
     forgiven: ``howfar`` -> ``howFar``) and it must have exactly two arguments that each name
     one object (quotes and articles are stripped). Anything else gives a cannot-parse result.
+    A call found this way has confidence 1.0: the text names it outright, and the text carries
+    no measure of doubt to read.
     """
     if not isinstance(text, str):
         raise TypeError(f"text: expected a str, got {type(text).__name__}")

@@ -79,6 +79,7 @@ def test_sends_the_paper_prompt_and_parses_the_reply(server):
     server.replies = [("json", _chat("howFar(refrigerator, television)"))]
     res = _parser(server.base_url).parse("What is the distance between the refrigerator and the TV?")
     assert res.ok and res.signature == "howFar(refrigerator, television)"
+    assert res.confidence == 1.0  # a reply that parses as a call is taken at its word
     path, headers, body = server.requests[0]
     assert path == "/v1/chat/completions"
     assert headers["Content-Type"] == "application/json"
@@ -156,7 +157,7 @@ def test_slow_server_times_out(server):
 def test_garbage_replies_are_cannot_parse(server, reply, reason):
     server.replies = [reply]
     res = _parser(server.base_url, max_retries=1).parse("How far is the chair from the sofa?")
-    assert not res.ok and reason in res.reason
+    assert not res.ok and reason in res.reason and res.confidence == 0.0
     assert len(server.requests) == 2
 
 

