@@ -1,6 +1,6 @@
 """The semantic parser's refusal threshold, derived from development questions by a fixed rule.
 
-**The rule** (issue 43, item 4; written down before any confidence of any question was
+**The rule** (written down before any confidence of any question was
 computed): the threshold is the smallest ``t`` on the grid ``k / 1000`` (``k = 0 .. 1000``) at
 which, over all rows of the development question sets, the rows answered with confidence
 ``>= t`` and a signature other than the expected one (answers to out-of-scope rows, expected
