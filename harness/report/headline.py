@@ -204,6 +204,22 @@ def read_kept_records(path: Path) -> list[dict]:
             if line.strip()]
 
 
+def write_measurement(records_file: Path, records: list[dict], table: str, start: str, end: str, what: str) -> int:
+    """Keep a measurement: the README's ``table`` between its markers (``start``, ``end``) and the
+    records in ``records_file`` (:func:`write_kept_records`); the exit status of a ``--write``
+    (2, with the error on stderr, when the README lacks the markers)."""
+    readme = records_file.parents[3] / "README.md"
+    try:
+        text = replace_between_markers(readme.read_text(), start, end, table, what)
+    except HarnessError as exc:
+        print(f"error: {exc}", file=sys.stderr)
+        return 2
+    atomic_write_text(readme, text)
+    keep = write_kept_records(records_file, records)
+    print(f"wrote {records_file} ({len(keep)} records) and the table in {readme}")
+    return 0
+
+
 def write_kept_records(path: Path, records: list[dict]) -> list[dict]:
     """Write the newest record of each episode of ``records`` to ``path`` (atomically), in a stable
     order (suite, encoder, agent, episode, seed), one sorted-key JSON object a line; returns them."""

@@ -24,13 +24,12 @@ from pathlib import Path
 import numpy as np
 
 from conceptfusion.errors import HarnessError
-from conceptfusion.io_utils import atomic_write_text
 from harness.report.headline import read_kept_records, replace_between_markers
 from harness.report.stats import bootstrap_ci, mcnemar_exact, metric_value, wilson_interval
 from harness.runner.results import latest_records, load_results
 
 __all__ = ["SUITES", "KINDS", "MAP_AGENT", "GENERIC_AGENT", "RECORDS_FILE", "InstructRow", "instruct_rows", "instruct_table",
-           "keep_record", "readme_with_table", "main"]
+           "keep_record", "readme_with_table", "read_kept_records", "main"]
 
 SUITES = ("instruct-v2",)
 """The suites the table reads."""
@@ -164,7 +163,7 @@ def readme_with_table(readme: str, table: str) -> str:
 
 
 def main(argv: list[str] | None = None) -> int:
-    from harness.report.headline import write_kept_records
+    from harness.report.headline import write_measurement
 
     p = argparse.ArgumentParser(prog="cfharness develop instruct", description=__doc__.splitlines()[0])
     p.add_argument("runs", nargs="+", help="run folders of instruct-v2 runs")
@@ -178,15 +177,7 @@ def main(argv: list[str] | None = None) -> int:
         return 2
     print(table)
     if args.write:
-        readme = RECORDS_FILE.parents[3] / "README.md"
-        try:
-            text = readme_with_table(readme.read_text(), table)
-        except HarnessError as exc:
-            print(f"error: {exc}", file=sys.stderr)
-            return 2
-        atomic_write_text(readme, text)
-        keep = write_kept_records(RECORDS_FILE, latest_records(records))
-        print(f"wrote {RECORDS_FILE} ({len(keep)} records) and the table in {readme}")
+        return write_measurement(RECORDS_FILE, latest_records(records), table, README_START, README_END, "instruct table")
     return 0
 
 
