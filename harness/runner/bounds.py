@@ -2,14 +2,15 @@
 
 A regression suite (:mod:`harness.runner.suites`: ``regression-rearrange``,
 ``regression-rearrange-embedded``, ``regression-search``, and the headline gate
-``regression-rearrange-v2``, ``regression-search-v2``) pins the first episodes of an episode
+``regression-rearrange-v2``, ``regression-search-v2``, and the search gate's PyBullet slice
+``regression-search-v2-pybullet``) pins the first episodes of an episode
 file and holds every agent it runs to a *lower bound* on its success rate (the random agents to an
 *upper bound*: a broken success function shows as a random agent succeeding). No bound is set by
 hand: this module derives each one from a recorded **calibration run**, the same agents with the
 same settings (environment size, scan frames, pinned perception, seed) over *other* episodes drawn
 from the same generators (the suite's ``calibration_file``: ``scenes/calibration/``, made by
 ``python -m scenes.make_calibration``, for the v1 suites; ``scenes/gate-v2/``, made by ``python -m
-scenes.make_gate_v2``, for the headline gate; not one of them is a regression episode, so a bound
+scenes.make_gate_v2``, for the headline gate and its PyBullet slice; not one of them is a regression episode, so a bound
 is never fitted to the episodes it checks).
 
 **Procedure** (:func:`derive_bound`), for an agent that succeeded on ``k`` of ``m`` calibration
@@ -118,12 +119,13 @@ power at :data:`CONFIDENCE`, so the recorded detection probabilities are those o
 family-wise counts)."""
 """Target probability of catching a drop of :data:`DROP` (a rise, for an upper bound)."""
 MAX_EPISODES = {"regression-rearrange": 100, "regression-rearrange-embedded": 100, "regression-search": 50,
-                "regression-rearrange-v2": 80, "regression-search-v2": 36}
+                "regression-rearrange-v2": 80, "regression-search-v2": 36, "regression-search-v2-pybullet": 36}
 """Most pinned episodes an agent may run per regression suite (CI budget, and for v1 search and
 v2 rearrangement all the pinned episodes): the power computation chooses within it. A v2 search
 episode takes about 11 s with embedded perception, so ``regression-search-v2`` holds each
 navigator to at most 36 (half the gate's 72 pinned searches, about 7 minutes of the gate on two
-cores)."""
+cores); its PyBullet slice ``regression-search-v2-pybullet`` (oracle-open perception, a few
+seconds an episode) runs at most the same 36 searches per agent."""
 UPPER_BOUND_AGENTS = frozenset({"random-pusher", "random-walker"})
 """Agents held to an upper bound instead of a lower bound."""
 BOUNDS_FORMAT = "cf-bounds"
