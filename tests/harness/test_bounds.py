@@ -114,7 +114,9 @@ def test_every_builtin_agent_has_a_bound_that_can_fail_where_the_budget_allows_o
     # the matched twins are bounded in the headline gate (the v2 suites), beside the agents they twin
     twins = {n for n in builtin if AGENTS[n].twin_of}
     assert twins == {"twin-navigator", "twin-pusher"}
-    assert len(builtin) == 10 and set(bounded) == builtin
+    # the language-planner agents are not gated yet: their tests (tests/agents/test_instruct_planner.py) run them
+    ungated = {"generic-planner", "map-planner"}
+    assert len(builtin) == 12 and set(bounded) == builtin - ungated
     assert {a for a, kinds in bounded.items() if "upper" in kinds} == set(bounds.UPPER_BOUND_AGENTS)
     assert cannot == {("regression-search", "frame-searcher")}  # the one the bounds module documents
     embedded = get_suite("regression-rearrange-embedded")
