@@ -10,7 +10,8 @@ Per suite (:func:`suite_answer`):
 - **best**: the (agent, encoder) group with the highest mean of the headline metric (a tie goes
   to a map agent: one with a matched twin, or whose records say it uses a map; higher is
   better), among the groups that read no ground truth; a group with ``extras.privileged`` is only
-  best when every group is privileged, and is then marked. A privileged group that scores higher
+  best when every group is privileged, and is then marked (an oracle, privileged with no
+  perception at all, only when nothing else ran: it is an upper bound). A privileged group that scores higher
   than the best is named in the card's note, marked, never ranked.
 - **compared with**: the matched map-free twin when one ran (a group whose records name the map
   agent in ``extras.twin_of``; the pair holding the best agent, else the pair whose map agent
@@ -152,10 +153,13 @@ def suite_answer(records: list[dict], suite: str) -> SuiteAnswer | None:
         return None
     privileged = frozenset(group_key(r)[1:] for r in recs if (r.get("extras") or {}).get("privileged") is True)
     public = [g for g in stats if g not in privileged]
+    # an oracle (privileged, no perception: it reads the goal itself) is an upper bound, ranked last
+    oracles = {g for g in stats if g in privileged and g[1] == "none"}
+    perceiving = [g for g in stats if g not in oracles]
     pairs = _twin_pairs(recs, stats)
     # a tie goes to a map agent (one with a twin, or that says it uses a map): the question is about the map
     mapping = {m for m, _ in pairs} | {group_key(r)[1:] for r in recs if (r.get("extras") or {}).get("uses_map") is True}
-    by_score = sorted(public or stats, key=lambda g: (-stats[g].mean, g not in mapping, g))
+    by_score = sorted(public or perceiving or stats, key=lambda g: (-stats[g].mean, g not in mapping, g))
     best = by_score[0]
     notes = [f"{_label(g, privileged)} scores {stats[g].mean:.2f}, not ranked: it reads ground truth a robot does not have"
              for g in sorted(stats, key=lambda g: -stats[g].mean) if public and g in privileged and stats[g].mean > stats[best].mean]
@@ -169,7 +173,7 @@ def suite_answer(records: list[dict], suite: str) -> SuiteAnswer | None:
         role, kind = _TWIN_ROLE, 0
     elif spec.baseline:
         bases = [g for g in stats if g[0] == spec.baseline]
-        others = [g for g in by_score if g[0] != spec.baseline]
+        others = [g for g in by_score if g[0] != spec.baseline and g not in oracles]
         if bases and others:
             compared = others[0]
             baseline = next((g for g in bases if g[1] == compared[1] and g not in privileged),

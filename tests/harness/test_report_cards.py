@@ -129,3 +129,16 @@ def test_a_tie_goes_to_the_map_agent():
     a = suite_answer(recs, "rearrange-v2")
     assert a.best == ("map-pusher", "e") and (a.compared, a.baseline) == (("map-pusher", "e"), ("twin-pusher", "e"))
     assert a.verdict == "no detectable difference"
+
+
+def test_an_oracle_is_not_the_best_when_every_agent_is_privileged():
+    """With privileged perception every agent is privileged; the oracle (no perception, it reads
+    the goal) is still the upper bound, so the card compares the planner agents."""
+    recs = []
+    for i in range(12):
+        recs.append(_rec("instruct-v2", "map-planner", i, {"success": i < 9}, encoder="oracle-open", privileged=True))
+        recs.append(_rec("instruct-v2", "generic-planner", i, {"success": i < 5}, encoder="oracle-open", privileged=True))
+        recs.append(_rec("instruct-v2", "oracle-searcher", i, {"success": True}, encoder="none", privileged=True))
+    a = suite_answer(recs, "instruct-v2")
+    assert a.best == ("map-planner", "oracle-open") and a.compared == a.best
+    assert a.baseline == ("generic-planner", "oracle-open") and a.verdict == "map context helps"
