@@ -74,6 +74,19 @@ def _sim_section() -> list[str]:
             sim_to_sim_table(sim_to_sim(read_kept_records(SIM_RECORDS))), ""]
 
 
+def _instruct_section() -> list[str]:
+    """The planner-in-the-loop table from the kept records (:mod:`harness.report.instruct`), when there are any."""
+    from harness.report.instruct import RECORDS_FILE as INSTRUCT_RECORDS, instruct_rows, instruct_table
+
+    if not INSTRUCT_RECORDS.is_file():
+        return []
+    return ["## A language planner with and without the map", "",
+            "`instruct-v2`: the same planner and navigator told what the map holds (`map-planner`) or the instruction "
+            "alone (`generic-planner`), paired by episode (`cfharness develop instruct` kept the records in "
+            "`harness/data/instruct/records.jsonl`):", "",
+            instruct_table(instruct_rows(read_kept_records(INSTRUCT_RECORDS))), ""]
+
+
 def _page_blocks(blocks: list) -> list:
     """A report's blocks for this page: no figures or figure-only sections, no links (they point
     into a run's report folder), no headings left with nothing under them, and not the report's
@@ -119,7 +132,7 @@ def results_page(runs: list, *, records_file: str | os.PathLike = RECORDS_FILE,
     """
     run_ids = sorted({str(r.get("run_id")) for run in runs for r in load_results(Path(run) / "results.jsonl"
                                                                                if Path(run).is_dir() else run)})
-    parts = [_INTRO, *_sealed_section(Path(records_file)), *_sim_section()]
+    parts = [_INTRO, *_sealed_section(Path(records_file)), *_sim_section(), *_instruct_section()]
     parts += [f"Run{'s' if len(run_ids) > 1 else ''} {', '.join(f'`{r}`' for r in run_ids)} "
               "(`cfharness run`, the default comparison: slices of the agent suites and the map suites):", ""]
     parts += _runs_section(list(runs), title)
