@@ -257,8 +257,8 @@ def test_episodes_good_file_loads(tmp_path):
 
 
 @pytest.mark.parametrize("header, message", [
-    ({**HEADER, "version": True}, r"line 1: expected version <= 2 \(an integer >= 1\), got True"),
-    ({**HEADER, "version": 0}, r"line 1: expected version <= 2 \(an integer >= 1\), got 0"),
+    ({**HEADER, "version": True}, r"line 1: expected version <= 3 \(an integer >= 1\), got True"),
+    ({**HEADER, "version": 0}, r"line 1: expected version <= 3 \(an integer >= 1\), got 0"),
     ({**HEADER, "generator_seed": "0"}, r"line 1: 'generator_seed' expected an integer or null, got '0'"),
     ({**HEADER, "taks": "x"}, r"line 1: header: unknown field 'taks'; did you mean 'task'"),
     ([1, 2], r"line 1: expected a header with format 'cf-episodes', got \[1, 2\]"),
