@@ -43,7 +43,7 @@ from scipy.spatial import cKDTree
 
 from conceptfusion.frames import RGBDFrame
 from conceptfusion.map.fusion import PointFusionMap
-from conceptfusion.map.query import (NEGATIVE_PHRASES, QueryResult, locate, locate_batch, regions_batch, relative_scores, relevancy,
+from conceptfusion.map.query import (NEGATIVE_PHRASES, QueryResult, locate, regions_batch, relative_scores, relevancy,
                                      vocabulary_margins)
 from conceptfusion.map.regions import Region, SupportTest
 from conceptfusion.names import did_you_mean
@@ -444,25 +444,27 @@ class ConceptMapper:
     def _locate_on(self, map_: PointFusionMap, text: str, floor: bool, contrast: bool) -> QueryResult:
         c = self.config
         negatives = self.negatives() if contrast else np.zeros((0, self.featurizer.dim), np.float32)
-        res = locate(
-            map_, self.text_vector(text), negatives,
-            relevancy_threshold=c.relevancy_threshold, voxel_size=c.voxel_size, min_points=c.min_points,
-            support=SupportTest() if c.drop_support else None,
-        )
-        return self._floored(res, floor)
-
-    def _floored(self, res: QueryResult, floor: bool) -> QueryResult:
-        """``res`` with the regions under the score floor (``config.min_score``) dropped, when ``floor``."""
-        c = self.config
+        res = locate(map_, self.text_vector(text), negatives, **self._query_settings())
         if c.min_score is None or not floor or not res.found:
             return res
-        kept = [r for r in res.regions if float(np.median(r.scores_n)) >= c.min_score]
+        kept = self._above_floor(res.regions)
         if kept:
             return dataclasses.replace(res, regions=kept)
         best = max(float(np.median(r.scores_n)) for r in res.regions)
         return dataclasses.replace(
             res, found=False, regions=[], reason=f"the best region scores {best:.2f}, below the encoder's floor {c.min_score:.2f}"
         )
+
+    def _query_settings(self) -> dict:
+        """The keyword arguments of the map queries (:func:`~conceptfusion.map.query.locate`) from the config."""
+        c = self.config
+        return dict(relevancy_threshold=c.relevancy_threshold, voxel_size=c.voxel_size, min_points=c.min_points,
+                    support=SupportTest() if c.drop_support else None)
+
+    def _above_floor(self, regions: Sequence[Region]) -> list[Region]:
+        """``regions`` whose median score reaches the score floor (``config.min_score``; all without one)."""
+        floor = self.config.min_score
+        return [r for r in regions if floor is None or float(np.median(r.scores_n)) >= floor]
 
     def present(self, texts: Sequence[str]) -> dict[str, Region]:
         """The best region of every text :meth:`locate` finds (above the score floor), in one
@@ -474,35 +476,14 @@ class ConceptMapper:
         if self.config.semantic_views or not texts:
             found = {t: self.locate(t) for t in texts}
             return {t: r.best for t, r in found.items() if r.found}
-        c = self.config
-        regions = regions_batch(
-            self.map, np.stack([self.text_vector(t) for t in texts]), self.negatives(),
-            relevancy_threshold=c.relevancy_threshold, voxel_size=c.voxel_size, min_points=c.min_points,
-            support=SupportTest() if c.drop_support else None,
-        )
-        out = {}
-        for t, regs in zip(texts, regions):
-            kept = [r for r in regs if c.min_score is None or float(np.median(r.scores_n)) >= c.min_score]
-            if kept:
-                out[t] = kept[0]
-        return out
+        regions = regions_batch(self.map, np.stack([self.text_vector(t) for t in texts]), self.negatives(),
+                                **self._query_settings())
+        kept = {t: self._above_floor(regs) for t, regs in zip(texts, regions)}
+        return {t: regs[0] for t, regs in kept.items() if regs}
 
     def locate_many(self, texts: Sequence[str]) -> dict[str, QueryResult]:
-        """:meth:`locate` for several descriptions, the same answers; on a fused map (no
-        ``semantic_views``) in one batch (:func:`~conceptfusion.map.query.locate_batch`: the map's
-        points read once, the queries scored several at a time), what listing a vocabulary needs."""
-        texts = list(dict.fromkeys(texts))
-        if self.config.semantic_views or not texts:
-            return {t: self.locate(t) for t in texts}
-        c = self.config
-        results = locate_batch(
-            self.map, np.stack([self.text_vector(t) for t in texts]), self.negatives(),
-            relevancy_threshold=c.relevancy_threshold, voxel_size=c.voxel_size, min_points=c.min_points,
-            support=SupportTest() if c.drop_support else None,
-        )
-        out = {t: self._floored(res, True) for t, res in zip(texts, results)}
-        self._answers.update(out)
-        return out
+        """:meth:`locate` for several descriptions."""
+        return {t: self.locate(t) for t in texts}
 
 
 _CONFIG_FIELDS = tuple(f.name for f in dataclasses.fields(MapperConfig))

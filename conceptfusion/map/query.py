@@ -35,7 +35,6 @@ __all__ = [
     "relevancy",
     "connected_regions",
     "locate",
-    "locate_batch",
     "regions_batch",
     "vocabulary_margins",
     "click_query_vector",
@@ -209,43 +208,6 @@ def locate(
     return _answer(len(map_), map_.points, normals, scores, neg_scores, relative_threshold=relative_threshold,
                    relevancy_threshold=relevancy_threshold, temperature=temperature, voxel_size=voxel_size,
                    min_points=min_points, support=support)
-
-
-def locate_batch(
-    map_,
-    queries_qd: np.ndarray,
-    negatives_kd: np.ndarray,
-    *,
-    chunk: int = 16,
-    relative_threshold: float = 0.6,
-    relevancy_threshold: float = 0.6,
-    temperature: float = 10.0,
-    voxel_size: float = 0.03,
-    min_points: int = 20,
-    support: SupportTest | None = SupportTest(),
-) -> list[QueryResult]:
-    """:func:`locate` for several queries of one map (a :class:`~conceptfusion.map.fusion.PointFusionMap`),
-    answer ``q`` equal to ``locate(map_, queries_qd[q], negatives_kd, ...)``: the negatives are
-    scored once, the queries ``chunk`` at a time in one pass each, and the points and normals
-    read once, so listing a vocabulary costs about one query per ``chunk``.
-
-    Shape:
-        ``queries_qd`` (Q, d), ``negatives_kd`` (K, d) -> Q results.
-    """
-    qs = as_float_array("queries_qd", np.asarray(queries_qd), shape=(None, map_.feature_dim)).astype(np.float32)
-    neg = as_float_array("negatives_kd", np.asarray(negatives_kd), shape=(None, map_.feature_dim)).astype(np.float32)
-    if isinstance(chunk, bool) or not isinstance(chunk, int) or chunk < 1:
-        raise ValueError(f"chunk: expected an integer >= 1, got {chunk!r}")
-    neg_scores = map_.scores_many(neg) if len(neg) else np.zeros((0, len(map_)), np.float32)
-    points = map_.points
-    normals = map_.normals if support is not None else None
-    out = []
-    for start in range(0, len(qs), chunk):
-        for scores in map_.scores_many(qs[start:start + chunk]):
-            out.append(_answer(len(map_), points, normals, scores, neg_scores, relative_threshold=relative_threshold,
-                               relevancy_threshold=relevancy_threshold, temperature=temperature, voxel_size=voxel_size,
-                               min_points=min_points, support=support))
-    return out
 
 
 def regions_batch(

@@ -3,10 +3,11 @@
 import json
 import socket
 import threading
-from http.server import BaseHTTPRequestHandler, ThreadingHTTPServer
+from http.server import BaseHTTPRequestHandler
 
 import pytest
 
+from tests.agents.scripted_http import scripted_server
 from agents.instruct.chat import PLANNER_PROMPT, ChatPlanner, ChatPlannerConfig
 from agents.instruct.planner import GoalQuery, MapObject, PlannerContext, make_planner
 from conceptfusion.errors import AgentError
@@ -68,18 +69,9 @@ def _handler(script):
 @pytest.fixture
 def server():
     script = _Script()
-    httpd = ThreadingHTTPServer(("127.0.0.1", 0), _handler(script))
-    httpd.daemon_threads = True
-    thread = threading.Thread(target=httpd.serve_forever, kwargs={"poll_interval": 0.02}, daemon=True)
-    thread.start()
-    script.base_url = f"http://127.0.0.1:{httpd.server_address[1]}/v1"
-    try:
+    with scripted_server(_handler(script), script.stop) as base_url:
+        script.base_url = base_url
         yield script
-    finally:
-        script.stop.set()
-        httpd.shutdown()
-        httpd.server_close()
-        thread.join()
 
 
 def _planner(base_url, **kw):

@@ -204,7 +204,7 @@ def test_the_generic_agent_tells_its_planner_no_objects_and_the_map_agent_what_t
 
 def test_map_listing_in_one_batch_answers_as_one_query_at_a_time():
     from conceptfusion.map.fusion import PointFusionMap
-    from conceptfusion.map.query import locate, locate_batch, regions_batch
+    from conceptfusion.map.query import locate, regions_batch
 
     rng = np.random.default_rng(0)
     m = PointFusionMap(feature_dim=8)
@@ -216,15 +216,13 @@ def test_map_listing_in_one_batch_answers_as_one_query_at_a_time():
     m.integrate(rng.integers(0, 255, (h, w, 3), dtype=np.uint8), np.full((h, w), 1.5, np.float32), K, np.eye(4), feats)
     queries = np.eye(8, dtype=np.float32)[:4]
     neg = np.eye(8, dtype=np.float32)[[7]]
-    batch = locate_batch(m, queries, neg, chunk=3, min_points=5, voxel_size=0.1, support=None)
-    for q, got in zip(queries, batch):
-        one = locate(m, q, neg, min_points=5, voxel_size=0.1, support=None)
-        assert got.found == one.found and got.reason == one.reason
-        np.testing.assert_array_equal(got.scores_n, one.scores_n)
-        assert [r.indices_n.tolist() for r in got.regions] == [r.indices_n.tolist() for r in one.regions]
-    assert batch[0].found and batch[1].found and not batch[2].found
+    one = [locate(m, q, neg, min_points=5, voxel_size=0.1, support=None) for q in queries]
+    assert one[0].found and one[1].found and not one[2].found
     # the listing's regions only: the same regions, queries no point can pass skipped
     listed = regions_batch(m, queries, neg, chunk=3, min_points=5, voxel_size=0.1, support=None)
-    assert [[r.indices_n.tolist() for r in regs] for regs in listed] == [[r.indices_n.tolist() for r in b.regions] for b in batch]
+    assert [[r.indices_n.tolist() for r in regs] for regs in listed] == [[r.indices_n.tolist() for r in b.regions] for b in one]
+    for regs, b in zip(listed, one):
+        for r, q in zip(regs, b.regions):
+            np.testing.assert_array_equal(r.scores_n, q.scores_n)
     with pytest.raises(ValueError, match="chunk: expected an integer >= 1"):
-        locate_batch(m, queries, neg, chunk=0)
+        regions_batch(m, queries, neg, chunk=0)

@@ -3,10 +3,11 @@
 import json
 import logging
 import threading
-from http.server import BaseHTTPRequestHandler, ThreadingHTTPServer
+from http.server import BaseHTTPRequestHandler
 
 import pytest
 
+from tests.agents.scripted_http import scripted_server
 from agents.spatial.llm import PAPER_PROMPT, LLMParser, LLMParserConfig, build_request_body
 
 
@@ -55,18 +56,9 @@ def _handler(canned):
 @pytest.fixture
 def server():
     canned = _Canned()
-    httpd = ThreadingHTTPServer(("127.0.0.1", 0), _handler(canned))
-    httpd.daemon_threads = True
-    thread = threading.Thread(target=httpd.serve_forever, kwargs={"poll_interval": 0.02}, daemon=True)
-    thread.start()
-    canned.base_url = f"http://127.0.0.1:{httpd.server_address[1]}/v1"
-    try:
+    with scripted_server(_handler(canned), canned.stop) as base_url:
+        canned.base_url = base_url
         yield canned
-    finally:
-        canned.stop.set()
-        httpd.shutdown()
-        httpd.server_close()
-        thread.join()
 
 
 def _parser(base_url, **kw):
